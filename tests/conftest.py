@@ -1,0 +1,22 @@
+"""Shared test fixtures: the repository root on sys.path and the real-mesh folder."""
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+MESHES = Path(os.environ.get("MICROMESH_MESHES", ROOT.parent / "shared" / "meshes"))
+
+
+def mesh_path(name: str) -> Path:
+    """Path of a real test mesh in ../shared/meshes; skips the test where it is absent."""
+    p = MESHES / name
+    if not p.exists():
+        pytest.skip(f"real test mesh {name} not found in {MESHES} (../shared/meshes absent)")
+    return p
