@@ -1,0 +1,1 @@
+"""Blender operators of the Micro-Mesh extension (thin glue around ``core``)."""
