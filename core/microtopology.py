@@ -1,0 +1,398 @@
+"""Micro-mesh topology: per-level barycentric grids, vertex orders, level balancing,
+edge-decimation flags and the one canonical index space of unique micro-vertices.
+
+Conventions (``docs/micromesh-format.md``): a base triangle (W, U, V) = (v0, v1, v2) at level
+ℓ holds micro-vertices at integer barycentrics (u, v), w = 2^ℓ − u − v. Edge ``i`` of a face
+is ``(f[i], f[(i+1) % 3])``: edge 0 is v = 0 (W→U), edge 1 is w = 0 (U→V), edge 2 is u = 0
+(V→W). Nothing here looks at positions.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+import scipy.sparse as sp
+
+from .mesh import TriMesh
+
+MAX_LEVEL = 5
+
+
+class LevelError(ValueError):
+    """Subdivision levels that cannot be used (wrong shape, out of range, unbalanced)."""
+
+
+# ----------------------------------------------------------------------------- per level
+def n_micro_vertices(level: int) -> int:
+    """(2^ℓ+1)(2^ℓ+2)/2 micro-vertices in a level-ℓ triangle."""
+    s = 1 << int(level)
+    return (s + 1) * (s + 2) // 2
+
+
+def n_micro_triangles(level: int) -> int:
+    """4^ℓ micro-triangles in a level-ℓ triangle."""
+    return 4 ** int(level)
+
+
+def umajor_index(u, v, level: int):
+    """u-major index u(2^ℓ+2) − u(u+1)/2 + v (vectorised over u, v)."""
+    s = 1 << int(level)
+    u = np.asarray(u, dtype=np.int64)
+    v = np.asarray(v, dtype=np.int64)
+    return u * (s + 2) - u * (u + 1) // 2 + v
+
+
+@lru_cache(maxsize=None)
+def _level_grid(level: int) -> np.ndarray:
+    s = 1 << level
+    u = np.repeat(np.arange(s + 1, dtype=np.int64), s + 1 - np.arange(s + 1))
+    v = np.arange(len(u), dtype=np.int64) - umajor_index(u, 0, level)
+    g = np.stack([u, v], axis=1)
+    g.flags.writeable = False
+    return g
+
+
+def level_grid(level: int) -> np.ndarray:
+    """(n, 2) integer (u, v) of the micro-vertices of a level, in u-major order."""
+    _check_level(level)
+    return _level_grid(int(level)).copy()
+
+
+def barycentric_weights(level: int) -> np.ndarray:
+    """(n, 3) weights (w, u, v) / 2^ℓ of base vertices 0, 1, 2 for each u-major micro-vertex."""
+    g = level_grid(level)
+    s = float(1 << int(level))
+    return np.stack([(s - g[:, 0] - g[:, 1]) / s, g[:, 0] / s, g[:, 1] / s], axis=1)
+
+
+@lru_cache(maxsize=None)
+def _level_triangles(level: int) -> np.ndarray:
+    s = 1 << level
+    g = _level_grid(level)
+    up = g[g.sum(1) <= s - 1]
+    fl = g[g.sum(1) <= s - 2]
+    u, v = up[:, 0], up[:, 1]
+    t_up = np.stack([umajor_index(u, v, level), umajor_index(u + 1, v, level),
+                     umajor_index(u, v + 1, level)], axis=1)
+    u, v = fl[:, 0], fl[:, 1]
+    t_fl = np.stack([umajor_index(u + 1, v, level), umajor_index(u + 1, v + 1, level),
+                     umajor_index(u, v + 1, level)], axis=1)
+    t = np.concatenate([t_up, t_fl]).astype(np.int64)
+    t.flags.writeable = False
+    return t
+
+
+def level_triangles(level: int) -> np.ndarray:
+    """(4^ℓ, 3) local u-major indices of the micro-triangles, wound like (W, U, V).
+
+    The upright triangles (u, v), (u+1, v), (u, v+1) come first (u-major order of their
+    corner), then the flipped ones (u+1, v), (u+1, v+1), (u, v+1).
+    """
+    _check_level(level)
+    return _level_triangles(int(level)).copy()
+
+
+@lru_cache(maxsize=None)
+def _bird_uv(level: int) -> np.ndarray:
+    s = 1 << level
+    W, U, V = (0, 0), (s, 0), (0, s)
+    verts = [W, U, V]
+    tris = [(W, U, V)]
+
+    def mid(a, b):
+        return ((a[0] + b[0]) // 2, (a[1] + b[1]) // 2)
+
+    for k in range(1, level + 1):
+        size = s >> (k - 1)
+        for tri in tris:  # level k-1 triangles in bird order
+            lo = (min(p[0] for p in tri), min(p[1] for p in tri))
+            a, b, c = lo, (lo[0] + size, lo[1]), (lo[0], lo[1] + size)
+            if set(tri) == {a, b, c}:  # upright in (u, v)
+                verts += [mid(a, c), mid(c, b), mid(b, a)]
+        nxt = []
+        for w, u, v in tris:
+            mwu, mwv, muv = mid(w, u), mid(w, v), mid(u, v)
+            nxt += [(w, mwu, mwv), (mwv, muv, mwu), (mwu, u, muv), (muv, mwv, v)]
+        tris = nxt
+    out = np.array(verts, dtype=np.int64)
+    out.flags.writeable = False
+    return out
+
+
+def bird_order(level: int) -> np.ndarray:
+    """(n,) element i = u-major index of the i-th micro-vertex in bird-curve order."""
+    _check_level(level)
+    uv = _bird_uv(int(level))
+    return umajor_index(uv[:, 0], uv[:, 1], level)
+
+
+def bird_index(level: int) -> np.ndarray:
+    """Inverse of :func:`bird_order`: element j = bird-curve index of u-major vertex j."""
+    order = bird_order(level)
+    inv = np.empty_like(order)
+    inv[order] = np.arange(len(order))
+    return inv
+
+
+@lru_cache(maxsize=None)
+def _edge_locals(level: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Local indices of edge i's interior vertices at positions k = 1..2^ℓ−1 (from f[i]),
+    the corner locals, and the interior locals (u-major)."""
+    s = 1 << level
+    k = np.arange(1, s, dtype=np.int64)
+    e0 = umajor_index(k, 0, level)          # v = 0, from W to U: k = u
+    e1 = umajor_index(s - k, k, level)      # w = 0, from U to V: k = v
+    e2 = umajor_index(0, s - k, level)      # u = 0, from V to W: k = s - v
+    edges = np.stack([e0, e1, e2]) if s > 1 else np.zeros((3, 0), dtype=np.int64)
+    corners = np.array([0, umajor_index(s, 0, level), umajor_index(0, s, level)], dtype=np.int64)
+    g = _level_grid(level)
+    w = s - g[:, 0] - g[:, 1]
+    interior = np.flatnonzero((g[:, 0] > 0) & (g[:, 1] > 0) & (w > 0)).astype(np.int64)
+    return edges, corners, interior
+
+
+def _snapped_k(level: int) -> np.ndarray:
+    """Edge position k = 1..2^ℓ−1 after snapping odd positions towards the nearer end
+    (the exact middle of a level-1 edge goes to the edge's start, f[i])."""
+    s = 1 << level
+    k = np.arange(1, s, dtype=np.int64)
+    return np.where(k % 2 == 1, np.where(2 * k <= s, k - 1, k + 1), k)
+
+
+@lru_cache(maxsize=None)
+def _snap_targets(level: int, flags: int) -> np.ndarray:
+    s = 1 << level
+    out = np.arange(n_micro_vertices(level), dtype=np.int64)
+    if s == 1:
+        return out
+    edges, corners, _ = _edge_locals(level)
+    ks = _snapped_k(level)
+    for i in range(3):
+        if (flags >> i) & 1:
+            full = np.concatenate([[corners[i]], edges[i], [corners[(i + 1) % 3]]])
+            out[edges[i]] = full[ks]
+    out.flags.writeable = False
+    return out
+
+
+def snap_targets(level: int, flags: int) -> np.ndarray:
+    """(n,) local u-major index each micro-vertex of a face stands for after edge decimation
+    with the given flags (itself where not snapped)."""
+    _check_level(level)
+    return _snap_targets(int(level), int(flags) & 7).copy()
+
+
+def _check_level(level) -> None:
+    if int(level) != level or not 0 <= int(level) <= MAX_LEVEL:
+        raise LevelError(f"subdivision level must be an integer in 0..{MAX_LEVEL}, got {level}")
+
+
+# -------------------------------------------------------------------------- mesh level
+def _as_levels(mesh: TriMesh, levels) -> np.ndarray:
+    lv = np.asarray(levels)
+    if lv.ndim == 0:
+        lv = np.full(mesh.n_faces, lv)
+    if lv.shape != (mesh.n_faces,):
+        raise LevelError(f"need one level per base face ({mesh.n_faces}), got shape {lv.shape}")
+    if lv.dtype.kind not in "iub":
+        if lv.dtype.kind != "f" or not np.all(np.isfinite(lv)) or np.any(lv != np.round(lv)):
+            raise LevelError("subdivision levels must be integers")
+    return lv.astype(np.int64)
+
+
+def _edge_min_max(mesh: TriMesh, lv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    ptr, idx = mesh.edge_faces_csr
+    vals = lv[idx]
+    return np.minimum.reduceat(vals, ptr[:-1]), np.maximum.reduceat(vals, ptr[:-1])
+
+
+def balance_levels(mesh: TriMesh, levels) -> np.ndarray:
+    """Clamp to 0..5, then raise the lower side until faces sharing an edge (all faces of a
+    non-manifold edge) differ by at most one level. Never lowers a (clamped) level."""
+    lv = np.clip(_as_levels(mesh, levels), 0, MAX_LEVEL)
+    fe = mesh.face_edges
+    while True:
+        _, emax = _edge_min_max(mesh, lv)
+        new = np.maximum(lv, emax[fe].max(axis=1) - 1)
+        if np.array_equal(new, lv):
+            return lv
+        lv = new
+
+
+def is_balanced(mesh: TriMesh, levels) -> bool:
+    lv = _as_levels(mesh, levels)
+    if lv.min() < 0 or lv.max() > MAX_LEVEL:
+        return False
+    emin, emax = _edge_min_max(mesh, lv)
+    return bool((emax - emin <= 1).all())
+
+
+def edge_flags(mesh: TriMesh, levels) -> np.ndarray:
+    """(nf,) uint8: bit i set ⇔ a face across edge i has a level one lower."""
+    lv = _as_levels(mesh, levels)
+    emin, _ = _edge_min_max(mesh, lv)
+    low = emin[mesh.face_edges] == lv[:, None] - 1
+    return (low[:, 0] * 1 + low[:, 1] * 2 + low[:, 2] * 4).astype(np.uint8)
+
+
+def _edge_levels(mesh: TriMesh, lv: np.ndarray) -> np.ndarray:
+    return _edge_min_max(mesh, lv)[0]
+
+
+def count_micro_vertices(mesh: TriMesh, levels) -> int:
+    """Size of the canonical micro-vertex index space (without building it)."""
+    lv = _as_levels(mesh, levels)
+    s_e = 1 << _edge_levels(mesh, lv)
+    s_f = 1 << lv
+    return int(mesh.n_vertices + (s_e - 1).sum() + ((s_f - 1) * (s_f - 2) // 2).sum())
+
+
+@dataclass(eq=False)
+class MicroTopology:
+    """The canonical index space of unique micro-vertices of a base mesh at given levels.
+
+    Indices: base vertices first (index = base vertex), then edge-interior vertices edge by
+    edge (``mesh.edges`` order, 2^(edge level) − 1 each, from ``edges[e, 0]`` to
+    ``edges[e, 1]``), then face-interior vertices face by face (u-major).
+    """
+
+    levels: np.ndarray            # (nf,) int64
+    flags: np.ndarray             # (nf,) uint8
+    n_base_vertices: int
+    n_vertices: int
+    edge_levels: np.ndarray       # (E,) min level of each edge's faces
+    edge_vertex_offset: np.ndarray  # (E+1,) first canonical index of each edge's interior
+    face_interior_offset: np.ndarray  # (nf+1,) first canonical index of each face's interior
+    face_vertex_ptr: np.ndarray   # (nf+1,)
+    face_vertex_idx: np.ndarray   # global index per local u-major micro-vertex (snapped → target)
+    interp: sp.csr_matrix         # (n_vertices, n_base_vertices) barycentric weights
+    triangles: np.ndarray         # (T, 3) non-degenerate micro-triangles, sorted by base face
+    triangle_face: np.ndarray     # (T,) base face
+    triangle_local: np.ndarray    # (T,) index into level_triangles(level of the face)
+    face_triangle_ptr: np.ndarray  # (nf+1,) triangles of face f: ptr[f]:ptr[f+1]
+    vertex_face: np.ndarray       # (n_vertices,) a base face holding the vertex (-1: unused)
+    vertex_bary: np.ndarray       # (n_vertices, 3) its (w, u, v) barycentrics in that face
+    vertex_level: np.ndarray      # (n_vertices,) finest level of a face holding it (-1: unused)
+
+    @property
+    def n_faces(self) -> int:
+        return len(self.levels)
+
+    @property
+    def n_triangles(self) -> int:
+        return len(self.triangles)
+
+    def face_vertices(self, f: int) -> np.ndarray:
+        """Global indices of face f's micro-vertices in u-major order."""
+        return self.face_vertex_idx[self.face_vertex_ptr[f]:self.face_vertex_ptr[f + 1]]
+
+
+def build_topology(mesh: TriMesh, levels) -> MicroTopology:
+    """Build the canonical micro-vertex space; levels must already be balanced."""
+    lv = _as_levels(mesh, levels)
+    if lv.min() < 0 or lv.max() > MAX_LEVEL:
+        raise LevelError(f"subdivision levels must lie in 0..{MAX_LEVEL}")
+    emin, emax = _edge_min_max(mesh, lv)
+    if (emax - emin > 1).any():
+        raise LevelError("levels of neighbouring faces differ by more than one; "
+                         "call balance_levels first")
+    nb, nf = mesh.n_vertices, mesh.n_faces
+    faces, fe, edges = mesh.faces, mesh.face_edges, mesh.edges
+    flags = edge_flags(mesh, lv)
+
+    s_e = (1 << emin).astype(np.int64)
+    n_e = s_e - 1
+    edge_off = nb + np.concatenate([[0], np.cumsum(n_e)]).astype(np.int64)
+    s_f = (1 << lv).astype(np.int64)
+    n_int = (s_f - 1) * (s_f - 2) // 2
+    face_off = edge_off[-1] + np.concatenate([[0], np.cumsum(n_int)]).astype(np.int64)
+    n_vertices = int(face_off[-1])
+
+    n_loc = (s_f + 1) * (s_f + 2) // 2
+    fv_ptr = np.concatenate([[0], np.cumsum(n_loc)]).astype(np.int64)
+    fv_idx = np.empty(int(fv_ptr[-1]), dtype=np.int64)
+
+    vertex_face = np.full(n_vertices, -1, dtype=np.int64)
+    vertex_bary = np.zeros((n_vertices, 3))
+    vertex_level = np.full(n_vertices, -1, dtype=np.int64)
+    tri_parts, tri_face_parts, tri_local_parts = [], [], []
+    rows, cols, vals = [np.arange(nb)], [np.arange(nb)], [np.ones(nb)]
+
+    for level in range(MAX_LEVEL + 1):
+        fl = np.flatnonzero(lv == level)
+        if len(fl) == 0:
+            continue
+        s = 1 << level
+        n_l = n_micro_vertices(level)
+        m = len(fl)
+        F, FE, FL = faces[fl], fe[fl], flags[fl].astype(np.int64)
+        glob = np.empty((m, n_l), dtype=np.int64)
+        snapped = np.zeros((m, n_l), dtype=bool)
+        e_loc, c_loc, i_loc = _edge_locals(level)
+        for c in range(3):
+            glob[:, c_loc[c]] = F[:, c]
+        if s > 1:
+            ks = np.arange(1, s, dtype=np.int64)
+            snk = _snapped_k(level)
+            for i in range(3):
+                e = FE[:, i]
+                flagged = ((FL >> i) & 1).astype(bool)
+                le_s = np.where(flagged, s // 2, s)[:, None]
+                kk = np.where(flagged[:, None], (snk // 2)[None, :], ks[None, :])
+                a, b = F[:, i], F[:, (i + 1) % 3]
+                forward = (edges[e, 0] == a)[:, None]
+                j = np.where(forward, kk, le_s - kk)
+                g = edge_off[e][:, None] + j - 1
+                g = np.where(kk == 0, a[:, None], np.where(kk == le_s, b[:, None], g))
+                glob[:, e_loc[i]] = g
+                snapped[:, e_loc[i]] = flagged[:, None] & (ks % 2 == 1)[None, :]
+        if len(i_loc):
+            glob[:, i_loc] = face_off[fl][:, None] + np.arange(len(i_loc))[None, :]
+            bw = barycentric_weights(level)[i_loc]
+            rows.append(glob[:, i_loc].reshape(-1).repeat(3))
+            cols.append(np.repeat(F[:, None, :], len(i_loc), axis=1).reshape(-1))
+            vals.append(np.tile(bw.reshape(-1), m))
+        fv_idx[(fv_ptr[fl][:, None] + np.arange(n_l)[None, :]).reshape(-1)] = glob.reshape(-1)
+
+        keep = ~snapped
+        gk = glob[keep]
+        fk = np.broadcast_to(fl[:, None], glob.shape)[keep]
+        vertex_face[gk] = fk
+        vertex_bary[gk] = np.broadcast_to(barycentric_weights(level)[None], (m, n_l, 3))[keep]
+        np.maximum.at(vertex_level, glob.reshape(-1), level)
+
+        lt = _level_triangles(level)
+        t = glob[:, lt]  # (m, 4^l, 3)
+        ok = (t[..., 0] != t[..., 1]) & (t[..., 1] != t[..., 2]) & (t[..., 2] != t[..., 0])
+        tri_parts.append(t[ok])
+        tri_face_parts.append(np.broadcast_to(fl[:, None], ok.shape)[ok])
+        tri_local_parts.append(np.broadcast_to(np.arange(len(lt))[None, :], ok.shape)[ok])
+
+    # edge-interior interpolation rows
+    if n_e.sum():
+        e_rep = np.repeat(np.arange(len(edges)), n_e)
+        j = np.arange(int(n_e.sum())) - np.repeat(edge_off[:-1] - nb, n_e) + 1
+        t = j / s_e[e_rep]
+        gi = nb + np.arange(int(n_e.sum()))
+        rows += [gi, gi]
+        cols += [edges[e_rep, 0], edges[e_rep, 1]]
+        vals += [1.0 - t, t]
+    interp = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                           shape=(n_vertices, nb))
+    interp.sum_duplicates()
+
+    tris = np.concatenate(tri_parts).astype(np.int64)
+    tface = np.concatenate(tri_face_parts).astype(np.int64)
+    tloc = np.concatenate(tri_local_parts).astype(np.int64)
+    order = np.argsort(tface, kind="stable")
+    tris, tface, tloc = tris[order], tface[order], tloc[order]
+    ft_ptr = np.concatenate([[0], np.cumsum(np.bincount(tface, minlength=nf))]).astype(np.int64)
+
+    return MicroTopology(
+        levels=lv, flags=flags, n_base_vertices=nb, n_vertices=n_vertices,
+        edge_levels=emin, edge_vertex_offset=edge_off, face_interior_offset=face_off,
+        face_vertex_ptr=fv_ptr, face_vertex_idx=fv_idx, interp=interp,
+        triangles=tris, triangle_face=tface, triangle_local=tloc, face_triangle_ptr=ft_ptr,
+        vertex_face=vertex_face, vertex_bary=vertex_bary, vertex_level=vertex_level,
+    )
