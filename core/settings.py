@@ -1,0 +1,191 @@
+"""Settings of a micro-mesh construction: one flat dataclass, named presets, overrides.
+
+Every knob is a plain field so ``--set key=value`` (batch.py, the add-on) maps onto it with
+:func:`apply_overrides`. The ablation switches of the paper's tables are fields too
+(``reparameterize``, ``progressive``, ``w_sv``, ``w_iso``, ``lod_criterion``, ``n_views``,
+``lambda_base`` / ``lambda_micro``).
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field, fields, replace
+from typing import Iterable
+
+
+class SettingsError(ValueError):
+    """A preset name or an override is not valid."""
+
+
+@dataclass(frozen=True)
+class ConstructSettings:
+    """All parameters of :func:`core.construct.construct`.
+
+    Iteration numbers are absolute; ``subdivide_at`` lists the iterations at which one level is
+    added (the paper: 50/150/400/800 of 1600). ``freeze_base_at`` starts the last phase that
+    tunes displacements only (``-1``: after the last subdivision event).
+    """
+
+    preset: str = "default"
+    device: str = "auto"             # "cpu", "cuda", "auto"
+    seed: int = 0
+    threads: int = 0                 # 0: all usable cores (core.threads.set_threads)
+
+    # schedule
+    iterations: int = 400
+    subdivide_at: tuple[int, ...] = (30, 90, 180)
+    max_level: int = 3               # ℓmax (≤ 5)
+    min_level: int = 1               # ℓmin of Algorithms 1 and 2
+    freeze_base_at: int = -1
+    progressive: bool = True         # False: subdivide to ℓmax before optimising (ablation)
+
+    # adaptive level of detail
+    lod: str = "in_optim"            # "in_optim" (Alg. 1), "post" (Alg. 2), "uniform"
+    lod_criterion: str = "visual"    # "visual" or "chamfer" (ablation)
+    tau_in: float = 0.1
+    tau_post: float = 0.03
+    budget_micro_triangles: int = 0  # 0: no budget
+    budget_bytes: int = 0            # 0: no budget (11-bit packed storage, core.metrics)
+
+    # parameters / optimiser
+    reparameterize: bool = True      # False: Laplacian smoothing term instead (ablation)
+    laplacian_weight: float = 1.0    # weight of that term
+    lambda_base: float = 19.0
+    lambda_micro: float = 9.0
+    lr_base: float = 2e-3
+    lr_disp: float = 2e-3
+    betas: tuple[float, float] = (0.9, 0.999)
+    grad_clip: float = 1.0           # max gradient norm per parameter tensor (0: off)
+    init_new_levels: str = "bake"    # "bake" (projection baking) or "interpolate" (paper)
+    init_bake: bool = True           # level-0 displacements from projection baking
+
+    # losses
+    w_render: float = 1.0
+    w_sv: float = 10.0
+    w_iso: float = 1.0
+
+    # cameras and images
+    n_views: int = 24
+    views_per_iter: int = 4
+    train_resolution: int = 192
+    camera_radius: float = 3.5
+    fov_y_deg: float = 35.0
+    antialias: bool = True
+    lod_resolution: int = 192        # resolution of the per-face error renders for the LOD
+
+    # evaluation
+    eval_views: int = 24
+    eval_resolution: int = 512
+    compute_metrics: bool = True
+    geom_error: bool = True
+
+    def validate(self) -> "ConstructSettings":
+        """Raise :class:`SettingsError` on inconsistent values; return self."""
+        if self.device not in ("cpu", "cuda", "auto"):
+            raise SettingsError(f"device must be cpu, cuda or auto, not {self.device!r}")
+        if not 0 <= self.max_level <= 5:
+            raise SettingsError("max_level must be within 0..5 (the hardware limit is 5)")
+        if not 0 <= self.min_level <= self.max_level:
+            raise SettingsError("min_level must be within 0..max_level")
+        if self.iterations < 0:
+            raise SettingsError("iterations must be >= 0")
+        if any(b < 0 for b in self.subdivide_at) or list(self.subdivide_at) != sorted(self.subdivide_at):
+            raise SettingsError("subdivide_at must be ascending, non-negative iterations")
+        if self.lod not in ("in_optim", "post", "uniform"):
+            raise SettingsError(f"lod must be in_optim, post or uniform, not {self.lod!r}")
+        if self.lod_criterion not in ("visual", "chamfer"):
+            raise SettingsError(f"lod_criterion must be visual or chamfer, not {self.lod_criterion!r}")
+        if self.init_new_levels not in ("bake", "interpolate"):
+            raise SettingsError("init_new_levels must be bake or interpolate")
+        if self.n_views < 1 or self.views_per_iter < 1:
+            raise SettingsError("n_views and views_per_iter must be >= 1")
+        if min(self.train_resolution, self.eval_resolution, self.lod_resolution) < 8:
+            raise SettingsError("resolutions must be >= 8 pixels")
+        if self.lambda_base < 0 or self.lambda_micro < 0:
+            raise SettingsError("lambda_base and lambda_micro must be >= 0")
+        return self
+
+    @property
+    def base_freeze_iteration(self) -> int:
+        if self.freeze_base_at >= 0:
+            return self.freeze_base_at
+        last = max(self.subdivide_at) if self.subdivide_at else 0
+        # Leave the displacements-only phase the last fifth of the run at least.
+        return max(last, int(0.8 * self.iterations)) if self.progressive else int(0.8 * self.iterations)
+
+
+PRESETS: dict[str, dict] = {
+    # Under a minute on a 2-core CPU for ~100k-face inputs.
+    "fast": dict(iterations=120, subdivide_at=(15, 40, 70), views_per_iter=3,
+                 train_resolution=128, lod_resolution=128, lr_base=3e-3, lr_disp=3e-3,
+                 eval_resolution=256, eval_views=12),
+    # Under five minutes on a 2-core CPU; the bench's main row.
+    "default": dict(iterations=400, subdivide_at=(30, 90, 180), views_per_iter=4,
+                    train_resolution=192, lod_resolution=192),
+    # Slower, closer to the paper on a CPU.
+    "quality": dict(iterations=900, subdivide_at=(50, 150, 300, 500), views_per_iter=6,
+                    train_resolution=256, lod_resolution=256, max_level=4),
+    # The paper's schedule: 1600 iterations, all 24 views each iteration, ℓmax 4.
+    "paper": dict(iterations=1600, subdivide_at=(50, 150, 400, 800), views_per_iter=24,
+                  train_resolution=512, lod_resolution=512, max_level=4, freeze_base_at=1200,
+                  lr_base=1e-3, lr_disp=1e-3),
+}
+
+
+def preset(name: str = "default", **overrides) -> ConstructSettings:
+    """The named preset (``fast``, ``default``, ``quality``, ``paper``) with field overrides."""
+    if name not in PRESETS:
+        raise SettingsError(f"unknown preset {name!r}; choose one of {', '.join(PRESETS)}")
+    base = dict(PRESETS[name])
+    base.update(overrides)
+    try:
+        return ConstructSettings(preset=name, **base).validate()
+    except TypeError as e:
+        raise SettingsError(str(e)) from None
+
+
+def _parse(value: str, current):
+    """Parse ``value`` to the type of the field's current value."""
+    v = value.strip()
+    if isinstance(current, bool):
+        if v.lower() in ("1", "true", "yes", "on"):
+            return True
+        if v.lower() in ("0", "false", "no", "off"):
+            return False
+        raise SettingsError(f"expected a boolean, got {value!r}")
+    if isinstance(current, int):
+        return int(float(v))
+    if isinstance(current, float):
+        return float(v)
+    if isinstance(current, tuple):
+        items = [s for s in v.strip("()[] ").replace(";", ",").split(",") if s.strip()]
+        kind = type(current[0]) if current else int
+        return tuple(kind(float(s)) if kind is int else kind(s) for s in items)
+    return v
+
+
+def apply_overrides(settings: ConstructSettings, overrides: Iterable[str] | dict) -> ConstructSettings:
+    """Apply ``["key=value", ...]`` or ``{key: value}`` overrides (strings parsed by field type)."""
+    names = {f.name for f in fields(ConstructSettings)}
+    items = overrides.items() if isinstance(overrides, dict) else (
+        (s.split("=", 1) if "=" in s else (s, None)) for s in overrides)
+    changes = {}
+    for key, value in items:
+        key = key.strip()
+        if key not in names:
+            raise SettingsError(f"unknown setting {key!r}")
+        if value is None:
+            raise SettingsError(f"override {key!r} needs a value (key=value)")
+        cur = getattr(settings, key)
+        try:
+            changes[key] = _parse(value, cur) if isinstance(value, str) and not isinstance(cur, str) else value
+        except (TypeError, ValueError) as e:
+            if isinstance(e, SettingsError):
+                raise
+            raise SettingsError(f"bad value {value!r} for {key}: {e}") from None
+    return replace(settings, **changes).validate()
+
+
+def to_dict(settings: ConstructSettings) -> dict:
+    """JSON-friendly dict of the settings."""
+    d = dataclasses.asdict(settings)
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
