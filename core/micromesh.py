@@ -1,0 +1,255 @@
+"""The micro-mesh primitive: base mesh, per-vertex directions, per-face levels and one
+scalar displacement per unique micro-vertex (``core.microtopology`` index space).
+
+Position of a micro-vertex = lerp(P) + lerp(D) · d, directions interpolated without
+normalising (``docs/method.md`` §1). Changing levels resamples the displacements so the
+piecewise-linear displaced surface is kept.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .mesh import TriMesh
+from .microtopology import (
+    LevelError, MicroTopology, _as_levels, _level_grid, _level_triangles, _snap_targets,
+    balance_levels, bird_order, build_topology, count_micro_vertices, is_balanced,
+    MAX_LEVEL,
+)
+
+
+class MicroMeshError(ValueError):
+    """A micro-mesh whose arrays do not fit together."""
+
+
+@dataclass(eq=False)
+class Tessellation:
+    """A flat triangle mesh of a displaced micro-mesh (watertight: shared vertices)."""
+
+    vertices: np.ndarray       # (n, 3)
+    triangles: np.ndarray      # (T, 3)
+    triangle_face: np.ndarray  # (T,) base face of each micro-triangle
+
+    def to_trimesh(self) -> TriMesh:
+        return TriMesh(self.vertices, self.triangles)
+
+
+@dataclass(eq=False)
+class MicroMesh:
+    """Base mesh + directions (nv, 3) + levels (nf,) + displacements (n_vertices,)."""
+
+    base: TriMesh
+    directions: np.ndarray
+    levels: np.ndarray
+    displacements: np.ndarray
+    _topology: MicroTopology | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.base, TriMesh):
+            raise MicroMeshError("base must be a TriMesh")
+        d = np.ascontiguousarray(self.directions, dtype=np.float64)
+        if d.shape != (self.base.n_vertices, 3):
+            raise MicroMeshError(f"directions must be ({self.base.n_vertices}, 3) (one per base "
+                                 f"vertex), got {d.shape}")
+        if not np.isfinite(d).all():
+            raise MicroMeshError("directions contain NaN or infinity")
+        try:
+            lv = _as_levels(self.base, self.levels)
+        except LevelError as e:
+            raise MicroMeshError(str(e)) from None
+        if not is_balanced(self.base, lv):
+            raise MicroMeshError(f"levels must lie in 0..{MAX_LEVEL} and differ by at most one "
+                                 "across every edge (use balance_levels or MicroMesh.flat)")
+        if self._topology is not None and not np.array_equal(self._topology.levels, lv):
+            raise MicroMeshError("cached topology does not match the levels")
+        n = (self._topology.n_vertices if self._topology is not None
+             else count_micro_vertices(self.base, lv))
+        disp = np.ascontiguousarray(self.displacements, dtype=np.float64)
+        if disp.shape != (n,):
+            raise MicroMeshError(f"displacements must have one value per micro-vertex ({n}), "
+                                 f"got shape {disp.shape}")
+        if not np.isfinite(disp).all():
+            raise MicroMeshError("displacements contain NaN or infinity")
+        self.directions, self.levels, self.displacements = d, lv, disp
+
+    # ----------------------------------------------------------------- construction
+    @classmethod
+    def flat(cls, base: TriMesh, levels, directions: np.ndarray | None = None) -> "MicroMesh":
+        """Zero displacements; directions default to area-weighted vertex normals; the levels
+        are balanced first (raised where needed)."""
+        lv = balance_levels(base, levels)
+        dirs = base.vertex_normals if directions is None else directions
+        return cls(base, dirs, lv, np.zeros(count_micro_vertices(base, lv)))
+
+    def with_displacements(self, displacements: np.ndarray) -> "MicroMesh":
+        return MicroMesh(self.base, self.directions, self.levels, displacements, self._topology)
+
+    def with_base_positions(self, vertices: np.ndarray) -> "MicroMesh":
+        return MicroMesh(self.base.with_vertices(vertices), self.directions, self.levels,
+                         self.displacements, self._topology)
+
+    def with_directions(self, directions: np.ndarray) -> "MicroMesh":
+        return MicroMesh(self.base, directions, self.levels, self.displacements, self._topology)
+
+    @property
+    def topology(self) -> MicroTopology:
+        if self._topology is None:
+            self._topology = build_topology(self.base, self.levels)
+        return self._topology
+
+    @property
+    def n_vertices(self) -> int:
+        return len(self.displacements)
+
+    # -------------------------------------------------------------------- geometry
+    def micro_vertex_base_positions(self) -> np.ndarray:
+        """(n, 3) undisplaced micro-vertex positions lerp(P)."""
+        return self.topology.interp @ self.base.vertices
+
+    def micro_vertex_directions(self) -> np.ndarray:
+        """(n, 3) interpolated, not normalised, directions lerp(D)."""
+        return self.topology.interp @ self.directions
+
+    def micro_vertex_positions(self) -> np.ndarray:
+        """(n, 3) lerp(P) + lerp(D) · d."""
+        return self.micro_vertex_base_positions() + \
+            self.micro_vertex_directions() * self.displacements[:, None]
+
+    def tessellate(self) -> Tessellation:
+        t = self.topology
+        return Tessellation(self.micro_vertex_positions(), t.triangles.copy(),
+                            t.triangle_face.copy())
+
+    def locate(self, faces: np.ndarray, bary: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Micro-triangle holding base-barycentric points: (q, 3) canonical vertex indices and
+        (q, 3) weights, so the displaced surface point is Σ w_k · position_k.
+
+        ``bary`` is (w, u, v) in base face ``faces``. Near decimated edges the snapped
+        (actual) micro-triangles are used, so the weights reproduce the point exactly.
+        """
+        return _locate(self.topology, np.asarray(faces, np.int64), np.asarray(bary, float))
+
+    def surface_at(self, faces: np.ndarray, bary: np.ndarray) -> np.ndarray:
+        """(q, 3) points of the displaced piecewise-linear surface at base barycentrics."""
+        idx, w = self.locate(faces, bary)
+        return np.einsum("qk,qkc->qc", w, self.micro_vertex_positions()[idx])
+
+    # ------------------------------------------------------------------ resampling
+    def with_levels(self, levels) -> "MicroMesh":
+        """New levels (up or down, must be balanced), displacements resampled so the surface
+        is kept: d = D·(X − P)/|D|² at each new vertex, X the old surface point."""
+        lv = _as_levels(self.base, levels)
+        if not is_balanced(self.base, lv):
+            raise MicroMeshError("with_levels needs balanced levels (use balance_levels)")
+        if np.array_equal(lv, self.levels):
+            return self.with_displacements(self.displacements.copy())
+        topo = build_topology(self.base, lv)
+        return MicroMesh(self.base, self.directions, lv, self._resample(topo), topo)
+
+    def subdivided(self, mask: np.ndarray | None = None) -> "MicroMesh":
+        """Faces in ``mask`` (bool (nf,) or face indices; default all) go up one level
+        (capped at 5), then the levels are rebalanced and displacements resampled."""
+        lv = self.levels.copy()
+        if mask is None:
+            lv += 1
+        else:
+            mk = np.asarray(mask)
+            if mk.dtype == bool and mk.shape != lv.shape:
+                raise MicroMeshError(f"mask must be ({len(lv)},) bool or face indices")
+            lv[mk] += 1
+        return self.with_levels(balance_levels(self.base, np.minimum(lv, MAX_LEVEL)))
+
+    def _resample(self, topo: MicroTopology) -> np.ndarray:
+        nb = topo.n_base_vertices
+        out = np.zeros(topo.n_vertices)
+        out[:nb] = self.displacements[:nb]  # base vertices keep their value (used or not)
+        sel = np.flatnonzero(topo.vertex_face >= 0)
+        sel = sel[sel >= nb]
+        if len(sel) == 0:
+            return out
+        idx, w = _locate(self.topology, topo.vertex_face[sel], topo.vertex_bary[sel])
+        old = self.micro_vertex_positions()
+        X = np.einsum("qk,qkc->qc", w, old[idx])
+        P = topo.interp[sel] @ self.base.vertices
+        D = topo.interp[sel] @ self.directions
+        nn = (D * D).sum(1)
+        lin = (w * self.displacements[idx]).sum(1)
+        d = np.where(nn > 1e-300, (D * (X - P)).sum(1) / np.maximum(nn, 1e-300), lin)
+        k = w.argmax(1)
+        same = w[np.arange(len(k)), k] >= 1.0 - 1e-12
+        d[same] = self.displacements[idx[np.arange(len(k)), k]][same]
+        out[sel] = d
+        return out
+
+    # ---------------------------------------------------------------------- export
+    def face_values(self, order: str = "umajor") -> tuple[np.ndarray, np.ndarray]:
+        """Per-face displacement arrays as CSR (ptr (nf+1,), values): face f's values are
+        ``values[ptr[f]:ptr[f+1]]`` in u-major or bird-curve order. Shared-edge values are
+        bit-identical in both faces (one canonical vertex)."""
+        t = self.topology
+        if order == "umajor":
+            return t.face_vertex_ptr.copy(), self.displacements[t.face_vertex_idx]
+        if order != "bird":
+            raise ValueError(f"order must be 'umajor' or 'bird', got {order!r}")
+        perm = np.empty(len(t.face_vertex_idx), dtype=np.int64)
+        for level in np.unique(t.levels):
+            fl = np.flatnonzero(t.levels == level)
+            bo = bird_order(int(level))
+            base = t.face_vertex_ptr[fl][:, None]
+            perm[(base + np.arange(len(bo))).reshape(-1)] = (base + bo[None, :]).reshape(-1)
+        return t.face_vertex_ptr.copy(), self.displacements[t.face_vertex_idx[perm]]
+
+
+def _locate(topo: MicroTopology, faces: np.ndarray, bary: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """See :meth:`MicroMesh.locate`."""
+    q = len(faces)
+    L = topo.levels[faces]
+    S = (1 << L).astype(np.int64)
+    U, V = bary[:, 1] * S, bary[:, 2] * S
+    iu = np.clip(np.floor(U).astype(np.int64), 0, S - 1)
+    iv = np.clip(np.floor(V).astype(np.int64), 0, S - 1 - iu)
+    fu, fv = U - iu, V - iv
+    up = (fu + fv <= 1.0) | (iu + iv == S - 1)
+    s2 = S + 2
+    def um(u, v):
+        return u * s2 - u * (u + 1) // 2 + v
+    loc = np.where(up[:, None],
+                   np.stack([um(iu, iv), um(iu + 1, iv), um(iu, iv + 1)], 1),
+                   np.stack([um(iu + 1, iv), um(iu + 1, iv + 1), um(iu, iv + 1)], 1))
+    w = np.where(up[:, None], np.stack([1 - fu - fv, fu, fv], 1),
+                 np.stack([1 - fv, fu + fv - 1, 1 - fu], 1))
+
+    # Faces with decimated edges: where the grid triangle touches a snapped vertex, search
+    # the snapped micro-triangles of that strip instead.
+    flags = topo.flags[faces].astype(np.int64)
+    for level in range(1, MAX_LEVEL + 1):
+        for fg in range(1, 8):
+            grp = np.flatnonzero((L == level) & (flags == fg))
+            if len(grp) == 0:
+                continue
+            tgt = _snap_targets(level, fg)
+            moved = tgt != np.arange(len(tgt))
+            grp = grp[moved[loc[grp]].any(1)]
+            if len(grp) == 0:
+                continue
+            lt = _level_triangles(level)
+            st = tgt[lt]
+            cand = moved[lt].any(1) & (st[:, 0] != st[:, 1]) & (st[:, 1] != st[:, 2]) & \
+                (st[:, 2] != st[:, 0])
+            lt, st = lt[cand], st[cand]
+            g = _level_grid(level).astype(float)
+            a, b, c = g[st[:, 0]], g[st[:, 1]], g[st[:, 2]]  # (c, 2) snapped corners
+            p = np.stack([U[grp], V[grp]], 1)[:, None, :]    # (q, 1, 2)
+            e1, e2, r = b - a, c - a, p - a
+            det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+            l1 = (r[..., 0] * e2[:, 1] - r[..., 1] * e2[:, 0]) / det
+            l2 = (e1[:, 0] * r[..., 1] - e1[:, 1] * r[..., 0]) / det
+            l0 = 1 - l1 - l2
+            best = np.minimum(np.minimum(l0, l1), l2).argmax(1)
+            rows = np.arange(len(grp))
+            loc[grp] = lt[best]
+            w[grp] = np.stack([l0[rows, best], l1[rows, best], l2[rows, best]], 1)
+    idx = topo.face_vertex_idx[topo.face_vertex_ptr[faces][:, None] + loc]
+    return idx, w
