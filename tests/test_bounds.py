@@ -1,0 +1,134 @@
+"""Direction bounds, normalised values and prismoid shell volume."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from core.bounds import (
+    BoundsError, DirectionBounds, micromesh_shell_volume, normalized_values, prismoid_volumes,
+    shell_volume, tight_bounds,
+)
+from core.mesh import TriMesh
+from core.micromesh import MicroMesh
+
+
+def icosphere(k: int) -> TriMesh:
+    t = (1 + 5 ** 0.5) / 2
+    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
+                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
+    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9],
+                  [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2],
+                  [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10],
+                  [8, 6, 7], [9, 8, 1]])
+    v = v / np.linalg.norm(v, axis=1, keepdims=True)
+    for _ in range(k):
+        m = TriMesh(v, f)
+        e = m.edges
+        mid = 0.5 * (v[e[:, 0]] + v[e[:, 1]])
+        a, b, c = f.T
+        ab, bc, ca = (len(v) + m.face_edges).T
+        v = np.concatenate([v, mid / np.linalg.norm(mid, axis=1, keepdims=True)])
+        f = np.concatenate([np.stack([a, ab, ca], 1), np.stack([ab, b, bc], 1),
+                            np.stack([ca, bc, c], 1), np.stack([ab, bc, ca], 1)])
+    return TriMesh(v, f)
+
+
+def enclosed_volume(v, f) -> float:
+    p = v[f]
+    return float(np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() / 6)
+
+
+def test_prism_by_hand():
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    f = np.array([[0, 1, 2]])
+    d = np.tile([0, 0, 1.0], (3, 1))
+    b = DirectionBounds(np.zeros(3), np.ones(3))
+    assert np.isclose(prismoid_volumes(v, f, d, b)[0], 0.5)
+    # bias shifts, scale stretches; the winding does not matter (absolute volumes)
+    b2 = DirectionBounds(np.full(3, 5.0), np.full(3, 2.0))
+    assert np.isclose(shell_volume(v, f[:, ::-1], d, b2), 1.0)
+    # a wedge: scale 0 at one vertex → 1/3 of the prism... vertex 0 height 0: V = A·(0+1+1)/3
+    b3 = DirectionBounds(np.zeros(3), np.array([0.0, 1.0, 1.0]))
+    assert np.isclose(shell_volume(v, f, d, b3), 0.5 * 2 / 3)
+
+
+def test_radial_shell_is_scaled_polyhedron_and_tends_to_sphere_shell():
+    h = 0.1
+    errs = []
+    for k in (0, 1, 2, 3):
+        m = icosphere(k)
+        b = DirectionBounds(np.zeros(m.n_vertices), np.full(m.n_vertices, h))
+        vol = shell_volume(m.vertices, m.faces, m.vertices, b)
+        # exact: the prismoids are differences of cones from the origin
+        assert np.isclose(vol, enclosed_volume(m.vertices, m.faces) * ((1 + h) ** 3 - 1))
+        errs.append(abs(vol - 4 * np.pi / 3 * ((1 + h) ** 3 - 1)))
+    assert all(e1 < e0 for e0, e1 in zip(errs, errs[1:])) and errs[-1] / errs[0] < 0.05
+
+
+def test_displaced_sphere_shell_volume():
+    m = icosphere(1)
+    vols = []
+    for level in (1, 2, 3):
+        mm = MicroMesh.flat(m, level, directions=m.vertices)
+        base = mm.micro_vertex_base_positions()
+        mm = mm.with_displacements(1 / np.linalg.norm(base, axis=1) - 1)  # onto the sphere
+        bd = tight_bounds(mm)
+        assert np.allclose(bd.bias, 0, atol=1e-15)  # base vertices are on the sphere
+        assert (normalized_values(mm, bd, clip=False) >= -1e-9).all()
+        assert (normalized_values(mm, bd, clip=False) <= 1 + 1e-9).all()
+        vols.append(micromesh_shell_volume(mm, bd))
+    gap = 4 * np.pi / 3 - enclosed_volume(m.vertices, m.faces)  # sphere minus polyhedron
+    # the shell holds the sphere cap over each face: at least the gap, at most a few times it
+    assert all(gap < v < 4 * gap for v in vols)
+    assert vols[0] <= vols[1] <= vols[2] + 1e-12  # finer sampling finds the true maxima
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2 ** 31 - 1))
+def test_tight_bounds_contain_values(seed):
+    rng = np.random.default_rng(seed)
+    m = icosphere(1)
+    mm = MicroMesh.flat(m, rng.integers(0, 3, m.n_faces), np.tile(rng.standard_normal(3),
+                                                                     (m.n_vertices, 1)))
+    mm = mm.with_displacements(rng.standard_normal(mm.n_vertices) * 0.1)
+    bd = tight_bounds(mm)
+    t = normalized_values(mm, bd, clip=False)
+    assert t.min() >= -1e-9 and t.max() <= 1 + 1e-9   # parallel directions: exact containment
+    # each base vertex's bounds are tight: attained by values in its star
+    top = mm.topology
+    for v in rng.integers(0, m.n_vertices, 5):
+        star = np.flatnonzero((m.faces == v).any(1))
+        vals = np.concatenate([mm.displacements[top.face_vertices(f)] for f in star])
+        assert np.isclose(bd.bias[v], vals.min()) and np.isclose(bd.bias[v] + bd.scale[v],
+                                                                 vals.max())
+    # positions are reproduced from the normalised values
+    D, P = mm.directions, m.vertices
+    rec = top.interp @ (P + D * bd.bias[:, None]) + (top.interp @ (D * bd.scale[:, None])) * \
+        t[:, None]
+    assert np.allclose(rec, mm.micro_vertex_positions(), atol=1e-12)
+
+
+def test_vertex_normals_values_mostly_inside_and_clipped():
+    m = icosphere(1)
+    rng = np.random.default_rng(0)
+    mm = MicroMesh.flat(m, 2)
+    mm = mm.with_displacements(0.05 * rng.standard_normal(mm.n_vertices))
+    bd = tight_bounds(mm)
+    raw = normalized_values(mm, bd, clip=False)
+    assert raw.min() > -0.1 and raw.max() < 1.1   # varying directions: small excursions only
+    t = normalized_values(mm, bd)
+    assert t.min() >= 0 and t.max() <= 1
+
+
+def test_flat_mesh_min_scale_and_errors():
+    m = icosphere(0)
+    mm = MicroMesh.flat(m, 1)
+    bd = tight_bounds(mm, min_scale=1e-3)
+    assert np.allclose(bd.scale, 1e-3) and np.allclose(bd.bias, 0)
+    with pytest.raises(BoundsError):
+        DirectionBounds(np.zeros(3), np.zeros(4))
+    with pytest.raises(BoundsError):
+        normalized_values(mm, DirectionBounds(np.zeros(3), np.ones(3)))
+    with pytest.raises(BoundsError):
+        prismoid_volumes(m.vertices, m.faces, m.vertices[:3], bd)
