@@ -1,0 +1,104 @@
+"""The renderer's public ops: rasterize, render, render_loss, pixel_error, reference_images.
+
+Every op takes torch tensors (verts (N, 3) float, faces (M, 3) integer) and a
+``core.cameras.Cameras`` batch, accepts a precomputed ``Raster`` and a ``backend``:
+"auto" (numba kernels for CPU tensors, torch for CUDA), "numba" or "torch".
+"""
+from __future__ import annotations
+
+import torch
+
+from . import torch_path
+from .geometry import vertex_normals
+from .topology import face_neighbours
+from .types import Raster, RenderError, camera_mvp, check_backend, check_mesh, check_raster
+
+KINDS = ("shaded", "normal", "mask", "depth")
+
+
+def _numba():
+    from . import numba_path  # compiled lazily: importing core.render stays cheap
+
+    return numba_path
+
+
+def rasterize(verts: torch.Tensor, faces: torch.Tensor, cams, *, backend: str = "auto") -> Raster:
+    """Visible face id and view-space depth per pixel for every camera (no gradient)."""
+    verts, faces = check_mesh(verts, faces)
+    be = check_backend(backend, verts.device)
+    mvp = camera_mvp(cams, verts.device)
+    with torch.no_grad():
+        if be == "numba":
+            tri, depth = _numba().rasterize_numba(verts, faces, mvp, cams.width, cams.height)
+        else:
+            tri, depth = torch_path.rasterize_torch(verts, faces, mvp, cams.width, cams.height)
+    return Raster(tri, depth, mvp, int(cams.width), int(cams.height), len(faces))
+
+
+def _prepare(verts, faces, cams, raster, backend):
+    verts, faces = check_mesh(verts, faces)
+    be = check_backend(backend, verts.device)
+    if raster is None:
+        raster = rasterize(verts, faces, cams, backend=be)
+    else:
+        raster = check_raster(raster, faces, cams)
+    return verts, faces, raster, be
+
+
+def render(verts: torch.Tensor, faces: torch.Tensor, cams, *, kind: str = "shaded",
+           raster: Raster | None = None, antialias: bool = True, backend: str = "auto") -> torch.Tensor:
+    """(B, H, W, C) image differentiable w.r.t. verts; background 0.
+
+    kind: "shaded" (C=3, SH lighting of interpolated, normalised area-weighted vertex normals),
+    "normal" (C=3, world-space unit normal), "mask" (C=1), "depth" (C=1, view-space depth).
+    """
+    if kind not in KINDS:
+        raise RenderError(f"kind must be one of {KINDS}, got {kind!r}")
+    verts, faces, raster, be = _prepare(verts, faces, cams, raster, backend)
+    if be == "numba":
+        return _numba().render_numba(verts, faces, raster, kind, antialias)
+    vn = vertex_normals(verts, faces) if kind in ("shaded", "normal") else None
+    img = torch_path.shade_torch(verts, faces, vn, raster.mvp, raster.tri_id, kind)
+    if antialias:
+        img = torch_path.antialias_torch(img, verts, faces, face_neighbours(faces), raster.mvp,
+                                         raster.tri_id, raster.depth)
+    return img
+
+
+def _check_target(target: torch.Tensor, raster: Raster, channels: int = 3) -> torch.Tensor:
+    shape = (len(raster.tri_id), raster.height, raster.width, channels)
+    if not isinstance(target, torch.Tensor) or tuple(target.shape) != shape:
+        got = tuple(target.shape) if isinstance(target, torch.Tensor) else type(target).__name__
+        raise RenderError(f"target must be a {shape} tensor, got {got}")
+    return target
+
+
+def render_loss(verts: torch.Tensor, faces: torch.Tensor, cams, target: torch.Tensor, *,
+                raster: Raster | None = None, antialias: bool = True,
+                backend: str = "auto") -> torch.Tensor:
+    """Scalar mean |render(kind="shaded") - target| over B*H*W*3 (fused on the numba backend)."""
+    verts, faces, raster, be = _prepare(verts, faces, cams, raster, backend)
+    target = _check_target(target, raster)
+    if be == "numba":
+        return _numba().loss_numba(verts, faces, raster, target, antialias)
+    img = render(verts, faces, cams, raster=raster, antialias=antialias, backend=be)
+    return (img - target.to(img.dtype)).abs().mean()
+
+
+def pixel_error(verts: torch.Tensor, faces: torch.Tensor, cams, target: torch.Tensor, *,
+                raster: Raster | None = None, antialias: bool = True,
+                backend: str = "auto") -> torch.Tensor:
+    """(B, H, W) per-pixel L1 error (sum over the 3 channels) of the shaded render; no gradient."""
+    with torch.no_grad():
+        verts, faces, raster, be = _prepare(verts.detach(), faces, cams, raster, backend)
+        target = _check_target(target, raster)
+        img = render(verts, faces, cams, raster=raster, antialias=antialias, backend=be)
+        return (img - target.to(img.dtype)).abs().sum(-1)
+
+
+def reference_images(verts: torch.Tensor, faces: torch.Tensor, cams, *, antialias: bool = True,
+                     backend: str = "auto") -> torch.Tensor:
+    """(B, H, W, 3) shaded images (same lighting) of e.g. the high-poly reference; no gradient."""
+    with torch.no_grad():
+        return render(verts.detach(), faces, cams, kind="shaded", antialias=antialias,
+                      backend=backend)
