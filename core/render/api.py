@@ -10,7 +10,7 @@ import torch
 
 from . import torch_path
 from .geometry import vertex_normals
-from .topology import face_neighbours
+from .topology import opposite_vertices
 from .types import Raster, RenderError, camera_mvp, check_backend, check_mesh, check_raster
 
 KINDS = ("shaded", "normal", "mask", "depth")
@@ -27,12 +27,13 @@ def rasterize(verts: torch.Tensor, faces: torch.Tensor, cams, *, backend: str = 
     verts, faces = check_mesh(verts, faces)
     be = check_backend(backend, verts.device)
     mvp = camera_mvp(cams, verts.device)
+    flags = None
     with torch.no_grad():
         if be == "numba":
-            tri, depth = _numba().rasterize_numba(verts, faces, mvp, cams.width, cams.height)
+            tri, depth, flags = _numba().rasterize_numba(verts, faces, mvp, cams.width, cams.height)
         else:
             tri, depth = torch_path.rasterize_torch(verts, faces, mvp, cams.width, cams.height)
-    return Raster(tri, depth, mvp, int(cams.width), int(cams.height), len(faces))
+    return Raster(tri, depth, mvp, int(cams.width), int(cams.height), len(faces), flags)
 
 
 def _prepare(verts, faces, cams, raster, backend):
@@ -60,7 +61,7 @@ def render(verts: torch.Tensor, faces: torch.Tensor, cams, *, kind: str = "shade
     vn = vertex_normals(verts, faces) if kind in ("shaded", "normal") else None
     img = torch_path.shade_torch(verts, faces, vn, raster.mvp, raster.tri_id, kind)
     if antialias:
-        img = torch_path.antialias_torch(img, verts, faces, face_neighbours(faces), raster.mvp,
+        img = torch_path.antialias_torch(img, verts, faces, opposite_vertices(faces), raster.mvp,
                                          raster.tri_id, raster.depth)
     return img
 

@@ -16,6 +16,8 @@ import numpy as np
 import torch
 from numba import njit, prange
 
+from .topology import faces_int32, opposite_vertices_int32
+
 
 @njit(inline="always")
 def _edge(fa, fb, xa, ya, xb, yb, px, py):
@@ -24,41 +26,49 @@ def _edge(fa, fb, xa, ya, xb, yb, px, py):
     return (xb - xa) * (py - ya) - (yb - ya) * (px - xa), True
 
 
-@njit(parallel=True, cache=True)
-def _raster_kernel(verts, faces, mvp, width, height, scratch, tri, depth):
-    nb = mvp.shape[0]
-    nv = verts.shape[0]
-    nslot = scratch.shape[0]
+@njit(cache=True)
+def project(verts, m, width, height, sc):
+    """sc[i] = (screen x, screen y, clip w, 1 if in front of the near plane else 0)."""
     hw, hh = 0.5 * width, 0.5 * height
+    for i in range(verts.shape[0]):
+        vx, vy, vz = np.float64(verts[i, 0]), np.float64(verts[i, 1]), np.float64(verts[i, 2])
+        x = ((m[0, 0] * vx + m[0, 1] * vy) + m[0, 2] * vz) + m[0, 3]
+        y = ((m[1, 0] * vx + m[1, 1] * vy) + m[1, 2] * vz) + m[1, 3]
+        z = ((m[2, 0] * vx + m[2, 1] * vy) + m[2, 2] * vz) + m[2, 3]
+        w = ((m[3, 0] * vx + m[3, 1] * vy) + m[3, 2] * vz) + m[3, 3]
+        sc[i, 0] = (x / w + 1.0) * hw
+        sc[i, 1] = (1.0 - y / w) * hh
+        sc[i, 2] = w
+        sc[i, 3] = 1.0 if (w > 0 and z >= -w) else 0.0
+    return 0
+
+
+@njit(parallel=True, cache=True)
+def _raster_kernel(verts, faces, opp, mvp, width, height, scratch, tri, depth, flags):
+    nb = mvp.shape[0]
+    nslot = scratch.shape[0]
     for slot in prange(nslot):
         sc = scratch[slot]
         for b in range(slot, nb, nslot):
-            m = mvp[b]
-            for i in range(nv):
-                vx, vy, vz = np.float64(verts[i, 0]), np.float64(verts[i, 1]), np.float64(verts[i, 2])
-                x = ((m[0, 0] * vx + m[0, 1] * vy) + m[0, 2] * vz) + m[0, 3]
-                y = ((m[1, 0] * vx + m[1, 1] * vy) + m[1, 2] * vz) + m[1, 3]
-                z = ((m[2, 0] * vx + m[2, 1] * vy) + m[2, 2] * vz) + m[2, 3]
-                w = ((m[3, 0] * vx + m[3, 1] * vy) + m[3, 2] * vz) + m[3, 3]
-                sc[i, 0] = (x / w + 1.0) * hw
-                sc[i, 1] = (1.0 - y / w) * hh
-                sc[i, 2] = w
-                sc[i, 3] = 1.0 if (w > 0 and z >= -w) else 0.0
+            project(verts, mvp[b], width, height, sc)
             tb = tri[b]
             db = depth[b]
             for f in range(faces.shape[0]):
                 i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
-                if sc[i0, 3] == 0.0 or sc[i1, 3] == 0.0 or sc[i2, 3] == 0.0:
-                    continue
                 x0, y0, x1, y1, x2, y2 = sc[i0, 0], sc[i0, 1], sc[i1, 0], sc[i1, 1], sc[i2, 0], sc[i2, 1]
-                area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
-                if area == 0.0 or not math.isfinite(area):
-                    continue
+                # bounding box of pixel centres first: most small faces cover none
                 c0 = max(math.ceil(min(x0, x1, x2) - 0.5), 0.0)
                 c1 = min(math.floor(max(x0, x1, x2) - 0.5), width - 1.0)
+                if not c0 <= c1:
+                    continue
                 r0 = max(math.ceil(min(y0, y1, y2) - 0.5), 0.0)
                 r1 = min(math.floor(max(y0, y1, y2) - 0.5), height - 1.0)
-                if c0 > c1 or r0 > r1:
+                if not r0 <= r1:
+                    continue
+                if sc[i0, 3] == 0.0 or sc[i1, 3] == 0.0 or sc[i2, 3] == 0.0:
+                    continue
+                area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
+                if area == 0.0 or not math.isfinite(area):
                     continue
                 pos = area > 0
                 iw0, iw1, iw2 = 1.0 / sc[i0, 2], 1.0 / sc[i1, 2], 1.0 / sc[i2, 2]
@@ -85,20 +95,92 @@ def _raster_kernel(verts, faces, mvp, width, height, scratch, tri, depth):
                         if d < db[r, c]:
                             db[r, c] = d
                             tb[r, c] = f
+            silhouette_flags(faces, opp, sc, tb, flags[b])
     return 0
 
 
+@njit(inline="always", cache=True)
+def _side(ax, ay, bx, by, px, py):
+    s = (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+    return 1.0 if s > 0 else (-1.0 if s < 0 else 0.0)
+
+
+@njit(inline="always", cache=True)
+def face_flags(faces, opp, sc, f):
+    """Bit e set: edge e of face f is a silhouette in this view (boundary, or the neighbour's
+    opposite vertex lies on the same side of the edge as f's third vertex, or behind the eye)."""
+    bits = 0
+    for e in range(3):
+        ia, ib, ic = faces[f, e], faces[f, (e + 1) % 3], faces[f, (e + 2) % 3]
+        o = opp[f, e]
+        if o < 0 or sc[o, 3] == 0.0:
+            bits |= 1 << e
+            continue
+        ax, ay, bx, by = sc[ia, 0], sc[ia, 1], sc[ib, 0], sc[ib, 1]
+        if _side(ax, ay, bx, by, sc[o, 0], sc[o, 1]) * _side(ax, ay, bx, by, sc[ic, 0], sc[ic, 1]) >= 0:
+            bits |= 1 << e
+    return bits
+
+
+@njit(cache=True)
+def silhouette_flags(faces, opp, sc, tb, fb):
+    """Per covered pixel, the silhouette-edge bits of its face (``sc``: projected vertices)."""
+    height, width = tb.shape
+    last, bits = -1, 0
+    for r in range(height):
+        for c in range(width):
+            f = tb[r, c]
+            if f < 0:
+                fb[r, c] = 0
+                continue
+            if f != last:
+                last, bits = f, face_flags(faces, opp, sc, f)
+            fb[r, c] = bits
+    return 0
+
+
+@njit(parallel=True, cache=True)
+def project_and_flag(verts, faces, opp, mvp, width, height, scratch, tri, flags):
+    """Silhouette-edge bits for an existing raster (e.g. one made by the torch backend)."""
+    nb = mvp.shape[0]
+    nslot = scratch.shape[0]
+    for slot in prange(nslot):
+        sc = scratch[slot]
+        for b in range(slot, nb, nslot):
+            project(verts, mvp[b], width, height, sc)
+            silhouette_flags(faces, opp, sc, tri[b], flags[b])
+    return 0
+
+
+def _scratch(n_verts: int, n_views: int) -> np.ndarray:
+    slots = max(1, min(numba.get_num_threads(), n_views))
+    return np.empty((slots, n_verts, 4), dtype=np.float64)
+
+
 def rasterize_numba(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor, width: int,
-                    height: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """(tri_id int32 (B, H, W), depth float32 (B, H, W), +inf background) on CPU tensors."""
+                    height: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(tri_id int32 (B, H, W), depth float32 (B, H, W) +inf background, silhouette-edge
+    bits uint8 (B, H, W) of each pixel's face) on CPU tensors."""
     v = verts.detach().contiguous().numpy()
-    f = faces.contiguous().numpy()
+    f = faces_int32(faces)
     m = mvp.contiguous().numpy()
     nb = len(m)
-    slots = max(1, min(numba.get_num_threads(), nb))
-    scratch = np.empty((slots, len(v), 4), dtype=np.float64)
     tri = np.full((nb, height, width), -1, dtype=np.int32)
     depth = np.full((nb, height, width), np.inf, dtype=np.float32)
+    flags = np.zeros((nb, height, width), dtype=np.uint8)
     if len(f) and nb:
-        _raster_kernel(v, f, m, int(width), int(height), scratch, tri, depth)
-    return torch.from_numpy(tri), torch.from_numpy(depth)
+        opp = opposite_vertices_int32(faces)
+        _raster_kernel(v, f, opp, m, int(width), int(height), _scratch(len(v), nb), tri, depth, flags)
+    return torch.from_numpy(tri), torch.from_numpy(depth), torch.from_numpy(flags)
+
+
+def edge_flags_numba(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor,
+                     tri: torch.Tensor) -> np.ndarray:
+    """Silhouette-edge bits (B, H, W) uint8 for a raster that lacks them."""
+    v = verts.detach().contiguous().numpy()
+    t = tri.contiguous().numpy()
+    flags = np.zeros(t.shape, dtype=np.uint8)
+    if len(faces) and len(t):
+        project_and_flag(v, faces_int32(faces), opposite_vertices_int32(faces), mvp.contiguous().numpy(),
+                         t.shape[2], t.shape[1], _scratch(len(v), len(t)), t, flags)
+    return flags

@@ -1,49 +1,83 @@
-"""Edge neighbours of faces, for silhouette tests in the antialiasing (cached per faces tensor).
+"""Mesh connectivity the kernels need, cached per faces tensor (the optimiser reuses one).
 
-Edge e of face f is (faces[f, e], faces[f, (e + 1) % 3]); ``face_neighbours(faces)[f, e]`` is the
-other face on that edge, or -1 on a boundary or non-manifold edge (treated as a silhouette).
+* ``opposite_vertices(faces)[f, e]``: across edge e = (faces[f, e], faces[f, (e + 1) % 3]), the
+  vertex of the other face that is not on the edge; -1 on a boundary or non-manifold edge. The
+  antialiasing calls an edge a silhouette when that vertex projects to the same side of the edge
+  as the face's own third vertex (the surface folds over the edge), or when there is none.
+* ``vertex_corners(faces)``: CSR (ptr (N+1,), corners) of each vertex's incident corners
+  f * 3 + k, for race-free per-vertex gathers.
 """
 from __future__ import annotations
 
 from collections import OrderedDict
+from typing import Callable
 
 import numpy as np
 import torch
 
-_CACHE: "OrderedDict[tuple, tuple[torch.Tensor, torch.Tensor]]" = OrderedDict()
-_CACHE_SIZE = 4
+_CACHE: "OrderedDict[tuple, tuple[torch.Tensor, object]]" = OrderedDict()
+_CACHE_SIZE = 8
 
 
-def _neighbours_numpy(f: np.ndarray) -> np.ndarray:
+def _cached(faces: torch.Tensor, what: str, make: Callable[[np.ndarray], object]):
+    key = (what, faces.data_ptr(), tuple(faces.shape), str(faces.device), faces.dtype)
+    hit = _CACHE.get(key)
+    if hit is not None and torch.equal(hit[0], faces):
+        _CACHE.move_to_end(key)
+        return hit[1]
+    value = make(faces.detach().cpu().numpy())
+    _CACHE[key] = (faces.detach().clone(), value)
+    while len(_CACHE) > _CACHE_SIZE:
+        _CACHE.popitem(last=False)
+    return value
+
+
+def _opposite_numpy(f: np.ndarray) -> np.ndarray:
     m = len(f)
-    nbr = np.full(3 * m, -1, dtype=np.int32)
+    opp = np.full(3 * m, -1, dtype=np.int64)
     if m == 0:
-        return nbr.reshape(0, 3)
+        return opp.reshape(0, 3)
     a = f.astype(np.int64)
     b = np.roll(a, -1, axis=1)
+    third = np.roll(a, -2, axis=1).ravel()
     n = int(a.max()) + 1
     key = (np.minimum(a, b) * n + np.maximum(a, b)).ravel()
     order = np.argsort(key, kind="stable")
     sk = key[order]
     eq = np.zeros(len(sk) + 1, dtype=bool)
     eq[1:-1] = sk[1:] == sk[:-1]
-    # i starts a group of exactly two: eq[i+1] and not eq[i] and not eq[i+2]
+    # i starts a group of exactly two half-edges: eq[i+1] and not eq[i] and not eq[i+2]
     i = np.nonzero(eq[1:-1] & ~eq[:-2] & ~np.append(eq[2:-1], False))[0]
     h0, h1 = order[i], order[i + 1]
-    nbr[h0] = h1 // 3
-    nbr[h1] = h0 // 3
-    return nbr.reshape(m, 3)
+    opp[h0] = third[h1]
+    opp[h1] = third[h0]
+    return opp.reshape(m, 3)
 
 
-def face_neighbours(faces: torch.Tensor) -> torch.Tensor:
-    """(M, 3) int32 neighbour across each edge (-1: boundary / non-manifold), on faces' device."""
-    key = (faces.data_ptr(), tuple(faces.shape), str(faces.device), faces.dtype)
-    hit = _CACHE.get(key)
-    if hit is not None and torch.equal(hit[0], faces):
-        _CACHE.move_to_end(key)
-        return hit[1]
-    nbr = torch.from_numpy(_neighbours_numpy(faces.detach().cpu().numpy())).to(faces.device)
-    _CACHE[key] = (faces.detach().clone(), nbr)
-    while len(_CACHE) > _CACHE_SIZE:
-        _CACHE.popitem(last=False)
-    return nbr
+def opposite_vertices(faces: torch.Tensor) -> torch.Tensor:
+    """(M, 3) int64 vertex across each edge (-1: boundary / non-manifold), on faces' device."""
+    return _cached(faces, "opp", lambda f: torch.from_numpy(_opposite_numpy(f))).to(faces.device)
+
+
+def _corners_numpy(f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    flat = f.astype(np.int64).ravel()
+    n = int(flat.max()) + 1 if len(flat) else 0
+    order = np.argsort(flat, kind="stable")
+    ptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(flat, minlength=n), out=ptr[1:])
+    return ptr, order.astype(np.int64)
+
+
+def vertex_corners(faces: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
+    """CSR (ptr, corners) numpy arrays: corners of vertex v are corners[ptr[v]:ptr[v + 1]]."""
+    return _cached(faces, "corners", _corners_numpy)
+
+
+def faces_int32(faces: torch.Tensor) -> np.ndarray:
+    """Contiguous int32 numpy copy of CPU faces (halves the kernels' index traffic), cached."""
+    return _cached(faces, "f32", lambda f: np.ascontiguousarray(f, dtype=np.int32))
+
+
+def opposite_vertices_int32(faces: torch.Tensor) -> np.ndarray:
+    """``opposite_vertices`` as a contiguous int32 numpy array, cached."""
+    return _cached(faces, "opp32", lambda f: _opposite_numpy(f).astype(np.int32))

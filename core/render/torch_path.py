@@ -153,23 +153,17 @@ def shade_torch(verts: torch.Tensor, faces: torch.Tensor, vnormals: torch.Tensor
     return out.view(nb, height, width, -1)
 
 
-def _facing(f: torch.Tensor, sx, sy, w) -> torch.Tensor:
-    """Sign of the screen area of faces (P, 3) (0 where a vertex is behind the camera)."""
-    x, y = sx[f], sy[f]
-    a = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (y[:, 1] - y[:, 0]) * (x[:, 2] - x[:, 0])
-    return torch.where((w[f] > 0).all(1), torch.sign(a), torch.zeros_like(a))
-
-
 def antialias_torch(color: torch.Tensor, verts: torch.Tensor, faces: torch.Tensor,
-                    nbr: torch.Tensor, mvp: torch.Tensor, tri_id: torch.Tensor,
+                    opp: torch.Tensor, mvp: torch.Tensor, tri_id: torch.Tensor,
                     depth: torch.Tensor) -> torch.Tensor:
     """nvdiffrast-style analytic antialiasing of (B, H, W, C) ``color``.
 
     For each horizontal and vertical pair of neighbouring pixels with different face ids, the
-    face of the nearer pixel is tested for a silhouette edge (boundary, or neighbour face facing
-    the other way) crossing the segment between the two pixel centres at t in [0, 1]. The pixel
-    whose box the edge cuts gets the other pixel's colour blended in by the cut fraction
-    |t - 1/2|; t depends on the edge's projected vertices, so gradients reach them.
+    face of the nearer pixel is tested for a silhouette edge (boundary, or the neighbour face's
+    opposite vertex ``opp`` projects to the same side as the face's third vertex) crossing the
+    segment between the two pixel centres at t in [0, 1]. The pixel whose box the edge cuts gets
+    the other pixel's colour blended in by the cut fraction |t - 1/2|; t depends on the edge's
+    projected vertices, so gradients reach them. Same rule as ``antialias.py``.
     """
     nb, height, width, nc = color.shape
     out = color
@@ -197,18 +191,6 @@ def antialias_torch(color: torch.Tensor, verts: torch.Tensor, faces: torch.Tenso
         wsafe = torch.where(wv > 0, wv, torch.ones_like(wv))
         sx = (clip[..., 0] / wsafe + 1.0) * (0.5 * width)
         sy = (1.0 - clip[..., 1] / wsafe) * (0.5 * height)
-        # facing of the occluder and of its edge neighbours (no gradient needed)
-        with torch.no_grad():
-            def face_sign(fidx):
-                vv = verts.detach()[f_all[fidx.clamp(min=0)]]
-                cc = torch.einsum("prk,pik->pir", m[:, (0, 1, 3), :3].detach(), vv) + m[:, None, (0, 1, 3), 3]
-                ww = cc[..., 2]
-                ws = torch.where(ww > 0, ww, torch.ones_like(ww))
-                xx = cc[..., 0] / ws * width
-                yy = -cc[..., 1] / ws * height
-                ar = (xx[:, 1] - xx[:, 0]) * (yy[:, 2] - yy[:, 0]) - (yy[:, 1] - yy[:, 0]) * (xx[:, 2] - xx[:, 0])
-                return torch.where((ww > 0).all(1) & (fidx >= 0), torch.sign(ar), torch.zeros_like(ar))
-            s_occ = face_sign(occ)
         if axis == 2:  # pair along x at fixed row
             fixed = ri.to(dt) + 0.5
             p0 = ci.to(dt) + 0.5
@@ -221,8 +203,17 @@ def antialias_torch(color: torch.Tensor, verts: torch.Tensor, faces: torch.Tenso
         for e in range(3):
             i, j = e, (e + 1) % 3
             with torch.no_grad():
-                nf = nbr.long()[occ, e]
-                sil = (nf < 0) | (face_sign(nf) != s_occ)
+                o = opp[occ, e]
+                vo = verts.detach()[o.clamp(min=0)]
+                co = torch.einsum("prk,pk->pr", m[:, (0, 1, 3), :3].detach(), vo) + m[:, (0, 1, 3), 3]
+                wo = torch.where(co[:, 2] > 0, co[:, 2], torch.ones_like(co[:, 2]))
+                ox = (co[:, 0] / wo + 1.0) * (0.5 * width)
+                oy = (1.0 - co[:, 1] / wo) * (0.5 * height)
+                k = (e + 2) % 3
+                ex, ey = sx[:, j].detach() - sx[:, i].detach(), sy[:, j].detach() - sy[:, i].detach()
+                side_o = torch.sign(ex * (oy - sy[:, i].detach()) - ey * (ox - sx[:, i].detach()))
+                side_c = torch.sign(ex * (sy[:, k].detach() - sy[:, i].detach()) - ey * (sx[:, k].detach() - sx[:, i].detach()))
+                sil = (o < 0) | (co[:, 2] <= 0) | (side_o * side_c >= 0)
             ya, yb = across[:, i], across[:, j]
             straddle = ((ya <= fixed) & (fixed < yb)) | ((yb <= fixed) & (fixed < ya))
             den = torch.where(straddle, yb - ya, torch.ones_like(ya))

@@ -29,6 +29,9 @@ class Raster:
     mvp:    (B, 4, 4) float64 world -> clip matrices the raster was made with (on the same
             device as ``tri_id``).
     n_faces: number of faces rasterised (guards reuse with another mesh).
+    edge_flags: (B, H, W) uint8 or None; bit e set where edge e of the pixel's face is a
+            silhouette in that view (made by the numba rasteriser; the antialiasing uses it to
+            skip interior pixel pairs, and computes it where absent).
     """
 
     tri_id: torch.Tensor
@@ -37,6 +40,7 @@ class Raster:
     width: int
     height: int
     n_faces: int
+    edge_flags: torch.Tensor | None = None
 
     @property
     def mask(self) -> torch.Tensor:

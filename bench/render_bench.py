@@ -1,0 +1,140 @@
+"""Renderer benchmark: one optimiser iteration (rasterise + shaded render + antialias + L1 loss,
+then backward to the vertices) from 24 views, numba CPU kernels next to the plain-torch path.
+
+    python bench/render_bench.py                  # 20k / 200k / 1M triangles at 256² and 512²
+    python bench/render_bench.py --quick          # 20k / 200k at 256², fewer repeats
+    python bench/render_bench.py --json out.json  # records {backend, device, triangles, ...}
+
+Each configuration runs in its own child process so that ``peak_mb`` (the process's peak
+resident memory while the timed calls run, sampled every 2 ms) is not polluted by the others.
+Times are medians over ``--repeat`` runs after one warm-up run.
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import threading
+import time
+
+import _common as C  # noqa: E402  (puts the repository root on sys.path)
+
+
+class PeakRSS:
+    """Samples this process's resident memory in a thread; ``peak_mb`` after ``stop``."""
+
+    def __init__(self, period: float = 0.002) -> None:
+        self.period, self.peak, self._run = period, 0, True
+        self._t = threading.Thread(target=self._loop, daemon=True)
+
+    @staticmethod
+    def rss() -> int:
+        with open("/proc/self/statm") as fh:
+            return int(fh.read().split()[1]) * 4096
+
+    def _loop(self) -> None:
+        while self._run:
+            self.peak = max(self.peak, self.rss())
+            time.sleep(self.period)
+
+    def __enter__(self) -> "PeakRSS":
+        self._t.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._run = False
+        self._t.join()
+
+    @property
+    def peak_mb(self) -> float:
+        return self.peak / 2 ** 20
+
+
+def run_one(backend: str, device: str, triangles: int, res: int, views: int, repeat: int) -> dict:
+    import torch
+
+    from core.cameras import fibonacci_cameras
+    from core.render import rasterize, reference_images, render_loss
+
+    v, f = C.noisy_sphere(triangles)
+    cams = fibonacci_cameras(views, width=res)
+    faces = torch.tensor(f, device=device)
+    target = reference_images(torch.tensor(v * 1.01, dtype=torch.float32, device=device), faces, cams,
+                              backend=backend)
+    verts = torch.tensor(v, dtype=torch.float32, device=device, requires_grad=True)
+    sync = torch.cuda.synchronize if device == "cuda" else (lambda: None)
+
+    def forward():
+        r = rasterize(verts, faces, cams, backend=backend)
+        loss = render_loss(verts, faces, cams, target, raster=r, backend=backend)
+        sync()
+        return loss
+
+    def forward_backward():
+        verts.grad = None
+        forward().backward()
+        sync()
+
+    fwd = C.median_time(forward, repeat=repeat, warmup=1)
+    with PeakRSS() as mem:
+        fb = C.median_time(forward_backward, repeat=repeat, warmup=1)
+    covered = int((rasterize(verts, faces, cams, backend=backend).tri_id >= 0).sum())
+    return {"backend": backend, "device": device, "triangles": len(f), "resolution": res,
+            "views": views, "forward_s": fwd, "forward_backward_s": fb, "peak_mb": mem.peak_mb,
+            "covered_pixels": covered}
+
+
+def main() -> None:
+    p = C.parser(__doc__.split("\n\n")[0])
+    p.add_argument("--quick", action="store_true", help="20k / 200k triangles at 256², 2 repeats")
+    p.add_argument("--sizes", type=int, nargs="+", default=None, help="triangle counts")
+    p.add_argument("--res", type=int, nargs="+", default=None, help="image sizes (square)")
+    p.add_argument("--views", type=int, default=24)
+    p.add_argument("--repeat", type=int, default=None)
+    p.add_argument("--backends", nargs="+", default=["numba", "torch"], choices=["numba", "torch"])
+    p.add_argument("--device", default="cpu", help="cpu or cuda (cuda runs the torch backend only)")
+    p.add_argument("--child", help=argparse_suppress())
+    a = p.parse_args()
+    from core.threads import set_threads
+
+    threads = set_threads(a.threads or None)
+    if a.child:
+        print(json.dumps(run_one(**json.loads(a.child))))
+        return
+    sizes = a.sizes or ([20_000, 200_000] if a.quick else [20_000, 200_000, 1_000_000])
+    res = a.res or ([256] if a.quick else [256, 512])
+    repeat = a.repeat or (2 if a.quick else 3)
+    backends = ["torch"] if a.device == "cuda" else a.backends
+    records, rows = [], []
+    for n in sizes:
+        for r in res:
+            row = {"triangles": n, "res": r, "views": a.views}
+            for be in backends:
+                cfg = dict(backend=be, device=a.device, triangles=n, res=r, views=a.views, repeat=repeat)
+                cmd = [sys.executable, __file__, "--child", json.dumps(cfg), "--threads", str(threads)]
+                out = subprocess.run(cmd, capture_output=True, text=True)
+                if out.returncode:
+                    print(out.stderr[-3000:], file=sys.stderr)
+                    raise SystemExit(f"child failed: {cfg}")
+                rec = json.loads(out.stdout.strip().splitlines()[-1])
+                records.append(rec)
+                row[f"{be} fwd s"] = rec["forward_s"]
+                row[f"{be} fwd+bwd s"] = rec["forward_backward_s"]
+                row[f"{be} peak MB"] = rec["peak_mb"]
+            if len(backends) == 2:
+                row["speed-up fwd+bwd"] = row["torch fwd+bwd s"] / row["numba fwd+bwd s"]
+            rows.append(row)
+            print(f"done {n} @ {r}", file=sys.stderr, flush=True)
+    C.print_table(rows, title=f"render iteration, {a.views} views, {threads} threads "
+                              "(rasterise + shade + antialias + L1, forward / forward+backward)")
+    C.write_json(a.json, records, threads=threads)
+
+
+def argparse_suppress():
+    import argparse
+
+    return argparse.SUPPRESS
+
+
+if __name__ == "__main__":
+    main()

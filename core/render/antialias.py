@@ -1,0 +1,193 @@
+"""Numba analytic antialiasing (nvdiffrast's method) with an analytic backward.
+
+For every horizontal and vertical pair of neighbouring pixels a, b with different face ids, the
+face of the nearer pixel (background is farthest; ties to the smaller id) is tested for a
+silhouette edge -- a boundary edge, or one whose neighbouring face folds over it in this view
+(its opposite vertex projects to the same side of the edge as the face's own third vertex, or
+behind the eye) --
+that crosses the segment between the two pixel centres at t in [0, 1] (t measured from a). The
+pixel whose box the edge cuts gets the other pixel's colour blended in by the cut fraction:
+t >= 1/2 -> b += (t - 1/2) (a - b), else a += (1/2 - t) (b - a). t depends on the edge's projected
+vertices, so the gradient reaches the vertices on the outline. ``torch_path`` has the same rule.
+
+The silhouette-edge bits per pixel come from the rasteriser (``raster.silhouette_flags``).
+Pass 1 finds each pair's edge once (code occ * 3 + e, -1 for none); the forward and the colour
+gradient are per-pixel gathers over the 4 pairs (no races); each pair's vertex gradient is
+scattered once, into per-slot buffers as in ``shade``.
+"""
+from __future__ import annotations
+
+from numba import njit, prange
+
+from .shade import add_vertex_grad, clip_xyw
+
+
+@njit(inline="always", cache=True)
+def _screen(verts, m, i, width, height):
+    x, y, w = clip_xyw(verts, m, i)
+    return (x / w + 1.0) * (0.5 * width), (1.0 - y / w) * (0.5 * height), x, y, w
+
+
+@njit(cache=True)
+def _pair_code(verts, faces, m, tb, db, fb, ra, ca, rb, cb, vertical, width, height):
+    """occ * 3 + e of the silhouette edge crossing the pair a=(ra, ca), b=(rb, cb), or -1."""
+    ida, idb = tb[ra, ca], tb[rb, cb]
+    if ida == idb:
+        return -1
+    da, dd = db[ra, ca], db[rb, cb]
+    near_a = idb < 0 or (ida >= 0 and (da < dd or (da == dd and ida < idb)))
+    occ = ida if near_a else idb
+    bits = fb[ra, ca] if near_a else fb[rb, cb]
+    if bits == 0:
+        return -1
+    sx0, sy0, _, _, w0 = _screen(verts, m, faces[occ, 0], width, height)
+    sx1, sy1, _, _, w1 = _screen(verts, m, faces[occ, 1], width, height)
+    sx2, sy2, _, _, w2 = _screen(verts, m, faces[occ, 2], width, height)
+    if not (w0 > 0 and w1 > 0 and w2 > 0):
+        return -1
+    if vertical:
+        fixed, p0 = ca + 0.5, ra + 0.5
+    else:
+        fixed, p0 = ra + 0.5, ca + 0.5
+    for e in range(3):
+        if not (bits >> e) & 1:
+            continue
+        if e == 0:
+            xa, ya, xb, yb = sx0, sy0, sx1, sy1
+        elif e == 1:
+            xa, ya, xb, yb = sx1, sy1, sx2, sy2
+        else:
+            xa, ya, xb, yb = sx2, sy2, sx0, sy0
+        if vertical:
+            aa, ab, ca_, cb_ = ya, yb, xa, xb  # along y, across x
+        else:
+            aa, ab, ca_, cb_ = xa, xb, ya, yb
+        if not ((ca_ <= fixed and fixed < cb_) or (cb_ <= fixed and fixed < ca_)):
+            continue
+        te = aa + (fixed - ca_) * (ab - aa) / (cb_ - ca_) - p0
+        if not (te >= 0.0 and te <= 1.0):
+            continue
+        return occ * 3 + e
+    return -1
+
+
+@njit(parallel=True, cache=True)
+def pair_codes(verts, faces, mvp, tri, depth, flags, code_h, code_v):
+    """code_h[b, r, c]: pair (r, c)-(r, c + 1); code_v[b, r, c]: pair (r, c)-(r + 1, c)."""
+    nb, height, width = tri.shape
+    for row in prange(nb * height):
+        b, r = row // height, row % height
+        m = mvp[b]
+        tb, db, fb = tri[b], depth[b], flags[b]
+        for c in range(width):
+            code_h[b, r, c] = -1 if c == width - 1 else _pair_code(
+                verts, faces, m, tb, db, fb, r, c, r, c + 1, False, width, height)
+            code_v[b, r, c] = -1 if r == height - 1 else _pair_code(
+                verts, faces, m, tb, db, fb, r, c, r + 1, c, True, width, height)
+    return 0
+
+
+@njit(inline="always", cache=True)
+def _edge_t(verts, faces, m, code, ra, ca, vertical, width, height):
+    """t of the pair starting at (ra, ca) for edge ``code`` and the data its gradient needs."""
+    occ, e = code // 3, code % 3
+    ia, ib = faces[occ, e], faces[occ, (e + 1) % 3]
+    sxa, sya, xa, ya, wa = _screen(verts, m, ia, width, height)
+    sxb, syb, xb, yb, wb = _screen(verts, m, ib, width, height)
+    if vertical:
+        fixed, p0, ala, alb, aca, acb = ca + 0.5, ra + 0.5, sya, syb, sxa, sxb
+    else:
+        fixed, p0, ala, alb, aca, acb = ra + 0.5, ca + 0.5, sxa, sxb, sya, syb
+    t = ala + (fixed - aca) * (alb - ala) / (acb - aca) - p0
+    return t, ia, ib, fixed, ala, alb, aca, acb, xa, ya, wa, xb, yb, wb
+
+
+@njit(inline="always", cache=True)
+def _pair_at(q, r, c, code_h, code_v, b, width, height):
+    """The q-th pair around (r, c) (0 left, 1 right, 2 up, 3 down): (code, ra, ca, rb, cb,
+    vertical, me_is_b); code -1 where the pair leaves the image."""
+    if q == 0:
+        return (code_h[b, r, c - 1] if c > 0 else -1), r, c - 1, r, c, False, True
+    if q == 1:
+        return code_h[b, r, c], r, c, r, c + 1, False, False
+    if q == 2:
+        return (code_v[b, r - 1, c] if r > 0 else -1), r - 1, c, r, c, True, True
+    return code_v[b, r, c], r, c, r + 1, c, True, False
+
+
+@njit(parallel=True, cache=True)
+def antialias_forward(color, verts, faces, mvp, code_h, code_v, out):
+    nb, height, width, nc = color.shape
+    for row in prange(nb * height):
+        b, r = row // height, row % height
+        m = mvp[b]
+        for c in range(width):
+            for ch in range(nc):
+                out[b, r, c, ch] = color[b, r, c, ch]
+            for q in range(4):
+                code, ra, ca, rb, cb, vertical, me_is_b = _pair_at(q, r, c, code_h, code_v, b, width, height)
+                if code < 0:
+                    continue
+                t = _edge_t(verts, faces, m, code, ra, ca, vertical, width, height)[0]
+                to_b = t >= 0.5
+                if to_b != me_is_b:
+                    continue
+                alpha = t - 0.5 if to_b else 0.5 - t
+                rs, cs = (ra, ca) if me_is_b else (rb, cb)
+                for ch in range(nc):
+                    out[b, r, c, ch] += alpha * (color[b, rs, cs, ch] - color[b, r, c, ch])
+    return 0
+
+
+@njit(parallel=True, cache=True)
+def antialias_backward(color, verts, faces, mvp, code_h, code_v, gout, gcolor, gv):
+    """gcolor (B, H, W, C) <- d/d color; gv (SLOTS, N, 3) zeros on entry <- d/d verts."""
+    nb, height, width, nc = color.shape
+    nslot = gv.shape[0]
+    nrows = nb * height
+    hw, hh = 0.5 * width, 0.5 * height
+    for k in prange(nslot):
+        gvk = gv[k]
+        for row in range(k, nrows, nslot):
+            b, r = row // height, row % height
+            m = mvp[b]
+            for c in range(width):
+                for ch in range(nc):
+                    gcolor[b, r, c, ch] = gout[b, r, c, ch]
+                for q in range(4):
+                    code, ra, ca, rb, cb, vertical, me_is_b = _pair_at(q, r, c, code_h, code_v, b, width, height)
+                    if code < 0:
+                        continue
+                    t, ia, ib, fixed, ala, alb, aca, acb, xa, ya, wa, xb, yb, wb = _edge_t(
+                        verts, faces, m, code, ra, ca, vertical, width, height)
+                    to_b = t >= 0.5
+                    alpha = t - 0.5 if to_b else 0.5 - t
+                    rd, cd, rs, cs = (rb, cb, ra, ca) if to_b else (ra, ca, rb, cb)
+                    if to_b == me_is_b:  # this pixel is the destination
+                        for ch in range(nc):
+                            gcolor[b, r, c, ch] -= alpha * gout[b, r, c, ch]
+                    else:
+                        for ch in range(nc):
+                            gcolor[b, r, c, ch] += alpha * gout[b, rd, cd, ch]
+                    if me_is_b:
+                        continue  # the pair's vertex gradient is scattered once, by pixel a
+                    gt = 0.0
+                    for ch in range(nc):
+                        gt += gout[b, rd, cd, ch] * (color[b, rs, cs, ch] - color[b, rd, cd, ch])
+                    if not to_b:
+                        gt = -gt
+                    if gt == 0.0:
+                        continue
+                    kk = (fixed - aca) / (acb - aca)
+                    slope = (alb - ala) / (acb - aca)
+                    g_ala, g_alb = gt * (1.0 - kk), gt * kk
+                    g_aca, g_acb = -gt * slope * (1.0 - kk), -gt * slope * kk
+                    if vertical:
+                        gsxa, gsya, gsxb, gsyb = g_aca, g_ala, g_acb, g_alb
+                    else:
+                        gsxa, gsya, gsxb, gsyb = g_ala, g_aca, g_alb, g_acb
+                    add_vertex_grad(gvk, ia, m, gsxa * hw / wa, -gsya * hh / wa,
+                                    (-gsxa * hw * xa + gsya * hh * ya) / (wa * wa))
+                    add_vertex_grad(gvk, ib, m, gsxb * hw / wb, -gsyb * hh / wb,
+                                    (-gsxb * hw * xb + gsyb * hh * yb) / (wb * wb))
+    return 0

@@ -1,0 +1,126 @@
+"""Numba area-weighted unit vertex normals with an analytic backward (CPU backend).
+
+Same function as ``geometry.vertex_normals``: vn_v = normalize(sum over incident faces of
+(v1 - v0) x (v2 - v0)). Both passes are race-free: faces are processed in parallel, vertices
+gather from their incident corners (CSR from ``topology.vertex_corners``).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+from numba import njit, prange
+
+from .geometry import NORMAL_EPS
+from .topology import vertex_corners
+
+
+@njit(parallel=True, cache=True)
+def _face_normals(verts, faces, fn):
+    for f in prange(faces.shape[0]):
+        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+        ax, ay, az = verts[i1, 0] - verts[i0, 0], verts[i1, 1] - verts[i0, 1], verts[i1, 2] - verts[i0, 2]
+        bx, by, bz = verts[i2, 0] - verts[i0, 0], verts[i2, 1] - verts[i0, 1], verts[i2, 2] - verts[i0, 2]
+        fn[f, 0] = ay * bz - az * by
+        fn[f, 1] = az * bx - ax * bz
+        fn[f, 2] = ax * by - ay * bx
+    return 0
+
+
+@njit(parallel=True, cache=True)
+def _vertex_forward(fn, ptr, corners, vn, inv):
+    for v in prange(len(ptr) - 1):
+        s0 = s1 = s2 = 0.0
+        for j in range(ptr[v], ptr[v + 1]):
+            f = corners[j] // 3
+            s0 += fn[f, 0]
+            s1 += fn[f, 1]
+            s2 += fn[f, 2]
+        k = 1.0 / math.sqrt(s0 * s0 + s1 * s1 + s2 * s2 + NORMAL_EPS)
+        inv[v] = k
+        vn[v, 0], vn[v, 1], vn[v, 2] = s0 * k, s1 * k, s2 * k
+    return 0
+
+
+@njit(parallel=True, cache=True)
+def _vertex_backward(gvn, vn, inv, graw):
+    for v in prange(vn.shape[0]):
+        d = vn[v, 0] * gvn[v, 0] + vn[v, 1] * gvn[v, 1] + vn[v, 2] * gvn[v, 2]
+        for j in range(3):
+            graw[v, j] = (gvn[v, j] - vn[v, j] * d) * inv[v]
+    return 0
+
+
+@njit(parallel=True, cache=True)
+def _verts_backward(verts, faces, graw, ptr, corners, gverts):
+    for v in prange(len(ptr) - 1):
+        s0 = s1 = s2 = 0.0
+        for j in range(ptr[v], ptr[v + 1]):
+            f, k = corners[j] // 3, corners[j] % 3
+            i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+            g0 = graw[i0, 0] + graw[i1, 0] + graw[i2, 0]
+            g1 = graw[i0, 1] + graw[i1, 1] + graw[i2, 1]
+            g2 = graw[i0, 2] + graw[i1, 2] + graw[i2, 2]
+            ax, ay, az = verts[i1, 0] - verts[i0, 0], verts[i1, 1] - verts[i0, 1], verts[i1, 2] - verts[i0, 2]
+            bx, by, bz = verts[i2, 0] - verts[i0, 0], verts[i2, 1] - verts[i0, 1], verts[i2, 2] - verts[i0, 2]
+            # d/d e1 = e2 x g, d/d e2 = g x e1; v0 gets minus both
+            p0, p1, p2 = by * g2 - bz * g1, bz * g0 - bx * g2, bx * g1 - by * g0
+            q0, q1, q2 = g1 * az - g2 * ay, g2 * ax - g0 * az, g0 * ay - g1 * ax
+            if k == 1:
+                s0 += p0
+                s1 += p1
+                s2 += p2
+            elif k == 2:
+                s0 += q0
+                s1 += q1
+                s2 += q2
+            else:
+                s0 -= p0 + q0
+                s1 -= p1 + q1
+                s2 -= p2 + q2
+        gverts[v, 0], gverts[v, 1], gverts[v, 2] = s0, s1, s2
+    return 0
+
+
+def _csr(faces: torch.Tensor, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Vertex -> corners CSR padded to n vertices (unreferenced trailing vertices: no corners)."""
+    ptr, corners = vertex_corners(faces)
+    if len(ptr) < n + 1:
+        ptr = np.concatenate([ptr, np.full(n + 1 - len(ptr), ptr[-1] if len(ptr) else 0, np.int64)])
+    return ptr, corners
+
+
+class VertexNormals(torch.autograd.Function):
+    """(N, 3) unit vertex normals of CPU verts (N, 3) and faces (M, 3)."""
+
+    @staticmethod
+    def forward(ctx, verts, faces):
+        v = verts.detach().contiguous().numpy()
+        f = faces.contiguous().numpy()
+        ptr, corners = _csr(faces, len(v))
+        fn = np.empty((len(f), 3), v.dtype)
+        _face_normals(v, f, fn)
+        vn = np.zeros((len(v), 3), v.dtype)
+        inv = np.zeros(len(v), np.float64)
+        _vertex_forward(fn, ptr, corners, vn, inv)
+        ctx.save_for_backward(verts)
+        ctx.stuff = (faces, vn, inv)
+        return torch.from_numpy(vn)
+
+    @staticmethod
+    def backward(ctx, gvn):
+        (verts,) = ctx.saved_tensors
+        faces, vn, inv = ctx.stuff
+        v = verts.detach().contiguous().numpy()
+        f = faces.contiguous().numpy()
+        graw = np.empty_like(vn)
+        _vertex_backward(gvn.to(verts.dtype).contiguous().numpy(), vn, inv, graw)
+        ptr, corners = _csr(faces, len(v))
+        gverts = np.zeros_like(v)
+        _verts_backward(v, f, graw, ptr, corners, gverts)
+        return torch.from_numpy(gverts), None
+
+
+def vertex_normals_numba(verts: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
+    return VertexNormals.apply(verts, faces)

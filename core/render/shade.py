@@ -1,0 +1,184 @@
+"""Fused numba per-pixel kernels: perspective-correct barycentrics of the visible face, then
+shading (SH of the interpolated normal), normal, depth or mask, with an analytic backward.
+
+Barycentrics are recomputed from the vertex positions (so they carry gradients, as in
+nvdiffrast's rasterize backward): with clip coordinates (x_i, y_i, w_i) of the face's vertices and
+pixel NDC (x, y), u_i = x_i - x w_i, t_i = y_i - y w_i, beta_i = u_j t_k - u_k t_j (i, j, k cyclic)
+and b_i = beta_i / sum(beta). The backward scatters vertex gradients into K per-slot buffers
+(rows k, k + K, ... go to slot k), summed in a fixed order: results do not depend on the number
+of threads and no two threads ever write the same memory.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .geometry import NORMAL_EPS
+
+MODE_SHADED, MODE_NORMAL, MODE_DEPTH, MODE_MASK = 0, 1, 2, 3
+MODES = {"shaded": MODE_SHADED, "normal": MODE_NORMAL, "depth": MODE_DEPTH, "mask": MODE_MASK}
+SLOTS = 8
+"""Gradient accumulation slots (fixed, so results are independent of the thread count)."""
+_TINY = 1e-300
+
+
+@njit(inline="always", cache=True)
+def clip_xyw(verts, m, i):
+    vx, vy, vz = np.float64(verts[i, 0]), np.float64(verts[i, 1]), np.float64(verts[i, 2])
+    return (m[0, 0] * vx + m[0, 1] * vy + m[0, 2] * vz + m[0, 3],
+            m[1, 0] * vx + m[1, 1] * vy + m[1, 2] * vz + m[1, 3],
+            m[3, 0] * vx + m[3, 1] * vy + m[3, 2] * vz + m[3, 3])
+
+
+@njit(inline="always", cache=True)
+def bary(x0, y0, w0, x1, y1, w1, x2, y2, w2, x, y):
+    u0, u1, u2 = x0 - x * w0, x1 - x * w1, x2 - x * w2
+    t0, t1, t2 = y0 - y * w0, y1 - y * w1, y2 - y * w2
+    s0 = u1 * t2 - u2 * t1
+    s1 = u2 * t0 - u0 * t2
+    s2 = u0 * t1 - u1 * t0
+    s = s0 + s1 + s2
+    if abs(s) < _TINY:
+        s = _TINY
+    return s0 / s, s1 / s, s2 / s, s, u0, u1, u2, t0, t1, t2
+
+
+@njit(inline="always", cache=True)
+def bary_backward(g0, g1, g2, b0, b1, b2, s, u0, u1, u2, t0, t1, t2):
+    gs = g0 * b0 + g1 * b1 + g2 * b2
+    h0, h1, h2 = (g0 - gs) / s, (g1 - gs) / s, (g2 - gs) / s
+    gu0 = h2 * t1 - h1 * t2
+    gu1 = h0 * t2 - h2 * t0
+    gu2 = h1 * t0 - h0 * t1
+    gt0 = h1 * u2 - h2 * u1
+    gt1 = h2 * u0 - h0 * u2
+    gt2 = h0 * u1 - h1 * u0
+    return gu0, gu1, gu2, gt0, gt1, gt2
+
+
+@njit(inline="always", cache=True)
+def add_vertex_grad(buf, i, m, gx, gy, gw):
+    for j in range(3):
+        buf[i, j] += m[0, j] * gx + m[1, j] * gy + m[3, j] * gw
+
+
+@njit(inline="always", cache=True)
+def shade_normal(qa, qb, qk, ch, n0, n1, n2):
+    a = qa[ch]
+    return (qk[ch] + qb[ch, 0] * n0 + qb[ch, 1] * n1 + qb[ch, 2] * n2
+            + a[0, 0] * n0 * n0 + a[1, 1] * n1 * n1 + a[2, 2] * n2 * n2
+            + 2.0 * (a[0, 1] * n0 * n1 + a[0, 2] * n0 * n2 + a[1, 2] * n1 * n2))
+
+
+@njit(inline="always", cache=True)
+def _interp_normal(vn, i0, i1, i2, b0, b1, b2):
+    n0 = b0 * vn[i0, 0] + b1 * vn[i1, 0] + b2 * vn[i2, 0]
+    n1 = b0 * vn[i0, 1] + b1 * vn[i1, 1] + b2 * vn[i2, 1]
+    n2 = b0 * vn[i0, 2] + b1 * vn[i1, 2] + b2 * vn[i2, 2]
+    inv = 1.0 / math.sqrt(n0 * n0 + n1 * n1 + n2 * n2 + NORMAL_EPS)
+    return n0 * inv, n1 * inv, n2 * inv, inv
+
+
+@njit(parallel=True, cache=True)
+def shade_forward(verts, faces, vn, mvp, tri, mode, qa, qb, qk, out):
+    """out (B, H, W, C) (zeros on entry) <- per-pixel value of ``mode``."""
+    nb, height, width = tri.shape
+    for row in prange(nb * height):
+        b, r = row // height, row % height
+        m = mvp[b]
+        y = 1.0 - (r + 0.5) * (2.0 / height)
+        for c in range(width):
+            f = tri[b, r, c]
+            if f < 0:
+                continue
+            if mode == MODE_MASK:
+                out[b, r, c, 0] = 1.0
+                continue
+            i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+            x = (c + 0.5) * (2.0 / width) - 1.0
+            x0, y0, w0 = clip_xyw(verts, m, i0)
+            x1, y1, w1 = clip_xyw(verts, m, i1)
+            x2, y2, w2 = clip_xyw(verts, m, i2)
+            b0, b1, b2, s, u0, u1, u2, t0, t1, t2 = bary(x0, y0, w0, x1, y1, w1, x2, y2, w2, x, y)
+            if mode == MODE_DEPTH:
+                out[b, r, c, 0] = b0 * w0 + b1 * w1 + b2 * w2
+                continue
+            n0, n1, n2, inv = _interp_normal(vn, i0, i1, i2, b0, b1, b2)
+            if mode == MODE_NORMAL:
+                out[b, r, c, 0], out[b, r, c, 1], out[b, r, c, 2] = n0, n1, n2
+            else:
+                for ch in range(3):
+                    out[b, r, c, ch] = shade_normal(qa, qb, qk, ch, n0, n1, n2)
+    return 0
+
+
+@njit(inline="always", cache=True)
+def pixel_backward(verts, faces, vn, m, f, x, y, mode, qa, qb, qk, g0, g1, g2, gv, gn):
+    """Accumulate the gradients of one pixel's value (upstream g0..g2) into gv / gn."""
+    i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+    x0, y0, w0 = clip_xyw(verts, m, i0)
+    x1, y1, w1 = clip_xyw(verts, m, i1)
+    x2, y2, w2 = clip_xyw(verts, m, i2)
+    b0, b1, b2, s, u0, u1, u2, t0, t1, t2 = bary(x0, y0, w0, x1, y1, w1, x2, y2, w2, x, y)
+    ew0 = ew1 = ew2 = 0.0
+    if mode == MODE_DEPTH:
+        gb0, gb1, gb2 = g0 * w0, g0 * w1, g0 * w2
+        ew0, ew1, ew2 = g0 * b0, g0 * b1, g0 * b2
+    else:
+        n0, n1, n2, inv = _interp_normal(vn, i0, i1, i2, b0, b1, b2)
+        if mode == MODE_NORMAL:
+            h0, h1, h2 = g0, g1, g2
+        else:
+            h0 = h1 = h2 = 0.0
+            for ch in range(3):
+                gc = g0 if ch == 0 else (g1 if ch == 1 else g2)
+                a = qa[ch]
+                h0 += gc * (qb[ch, 0] + 2.0 * (a[0, 0] * n0 + a[0, 1] * n1 + a[0, 2] * n2))
+                h1 += gc * (qb[ch, 1] + 2.0 * (a[1, 0] * n0 + a[1, 1] * n1 + a[1, 2] * n2))
+                h2 += gc * (qb[ch, 2] + 2.0 * (a[2, 0] * n0 + a[2, 1] * n1 + a[2, 2] * n2))
+        d = n0 * h0 + n1 * h1 + n2 * h2
+        k0, k1, k2 = (h0 - n0 * d) * inv, (h1 - n1 * d) * inv, (h2 - n2 * d) * inv
+        gn[i0, 0] += b0 * k0
+        gn[i0, 1] += b0 * k1
+        gn[i0, 2] += b0 * k2
+        gn[i1, 0] += b1 * k0
+        gn[i1, 1] += b1 * k1
+        gn[i1, 2] += b1 * k2
+        gn[i2, 0] += b2 * k0
+        gn[i2, 1] += b2 * k1
+        gn[i2, 2] += b2 * k2
+        gb0 = k0 * vn[i0, 0] + k1 * vn[i0, 1] + k2 * vn[i0, 2]
+        gb1 = k0 * vn[i1, 0] + k1 * vn[i1, 1] + k2 * vn[i1, 2]
+        gb2 = k0 * vn[i2, 0] + k1 * vn[i2, 1] + k2 * vn[i2, 2]
+    gu0, gu1, gu2, gt0, gt1, gt2 = bary_backward(gb0, gb1, gb2, b0, b1, b2, s, u0, u1, u2, t0, t1, t2)
+    add_vertex_grad(gv, i0, m, gu0, gt0, ew0 - x * gu0 - y * gt0)
+    add_vertex_grad(gv, i1, m, gu1, gt1, ew1 - x * gu1 - y * gt1)
+    add_vertex_grad(gv, i2, m, gu2, gt2, ew2 - x * gu2 - y * gt2)
+
+
+@njit(parallel=True, cache=True)
+def shade_backward(verts, faces, vn, mvp, tri, mode, qa, qb, qk, gout, gv, gn):
+    """gv, gn (SLOTS, N, 3) zeros on entry <- d(sum gout * out)/d verts, d/d vertex normals."""
+    nb, height, width = tri.shape
+    nslot = gv.shape[0]
+    nrows = nb * height
+    for k in prange(nslot):
+        gvk, gnk = gv[k], gn[k]
+        for row in range(k, nrows, nslot):
+            b, r = row // height, row % height
+            m = mvp[b]
+            y = 1.0 - (r + 0.5) * (2.0 / height)
+            for c in range(width):
+                f = tri[b, r, c]
+                if f < 0:
+                    continue
+                x = (c + 0.5) * (2.0 / width) - 1.0
+                g0 = np.float64(gout[b, r, c, 0])
+                g1 = np.float64(gout[b, r, c, 1]) if gout.shape[3] > 1 else 0.0
+                g2 = np.float64(gout[b, r, c, 2]) if gout.shape[3] > 2 else 0.0
+                if g0 == 0.0 and g1 == 0.0 and g2 == 0.0:
+                    continue
+                pixel_backward(verts, faces, vn, m, f, x, y, mode, qa, qb, qk, g0, g1, g2, gvk, gnk)
+    return 0
