@@ -8,7 +8,7 @@ Every knob is a plain field so ``--set key=value`` (batch.py, the add-on) maps o
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, fields, replace
 from typing import Iterable
 
 
@@ -84,8 +84,8 @@ class ConstructSettings:
             raise SettingsError(f"device must be cpu, cuda or auto, not {self.device!r}")
         if not 0 <= self.max_level <= 5:
             raise SettingsError("max_level must be within 0..5 (the hardware limit is 5)")
-        if not 0 <= self.min_level <= self.max_level:
-            raise SettingsError("min_level must be within 0..max_level")
+        if self.min_level < 0:
+            raise SettingsError("min_level must be >= 0 (values above max_level act as max_level)")
         if self.iterations < 0:
             raise SettingsError("iterations must be >= 0")
         if any(b < 0 for b in self.subdivide_at) or list(self.subdivide_at) != sorted(self.subdivide_at):

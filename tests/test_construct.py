@@ -1,0 +1,131 @@
+"""The construction entry point on small procedural meshes: beats the staged baseline, keeps
+the surface when subdividing, cancels within one iteration, is reproducible."""
+import numpy as np
+import pytest
+
+from core.construct import (ConstructCancelled, ConstructError, construct, staged_baseline)
+from core.mesh import TriMesh
+from core.settings import SettingsError, apply_overrides, preset
+
+
+def icosphere(n):
+    t = (1 + 5 ** 0.5) / 2
+    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
+                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
+    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9],
+                  [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2],
+                  [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10],
+                  [8, 6, 7], [9, 8, 1]])
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    for _ in range(n):
+        e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), 1)
+        u, inv = np.unique(e, axis=0, return_inverse=True)
+        mid = v[u].mean(1)
+        mid /= np.linalg.norm(mid, axis=1, keepdims=True)
+        m = len(v) + inv.reshape(3, -1).T
+        v = np.vstack([v, mid])
+        a, b, c = f.T
+        ab, bc, ca = m.T
+        f = np.concatenate([np.stack([a, ab, ca], 1), np.stack([ab, b, bc], 1),
+                            np.stack([ca, bc, c], 1), np.stack([ab, bc, ca], 1)])
+    return v, f
+
+
+@pytest.fixture(scope="module")
+def scene():
+    """A bumpy sphere (caller frame: radius 2, centre (1, 1, 1)) and a rough, perturbed base."""
+    v, f = icosphere(4)
+    r = 1 + 0.08 * np.sin(5 * v[:, 0] + 1) * np.sin(5 * v[:, 1]) * np.sin(5 * v[:, 2] + 2)
+    ref = TriMesh(v * r[:, None] * 2.0 + 1.0, f)
+    bv, bf = icosphere(1)
+    rng = np.random.default_rng(3)
+    bv = bv * (1 + 0.06 * rng.standard_normal((len(bv), 1))) + 0.06 * rng.standard_normal(bv.shape)
+    return ref, TriMesh(bv * 2.0 + 1.0, bf)
+
+
+def small(**kw):
+    base = dict(iterations=60, subdivide_at=(5, 15), max_level=2, views_per_iter=4,
+                train_resolution=96, lod_resolution=64, eval_resolution=128, eval_views=8,
+                lod="uniform", geom_error=False, lr_base=2e-3, lr_disp=1e-3)
+    base.update(kw)
+    return preset("fast", **base)
+
+
+def test_short_run_beats_staged_baseline(scene):
+    ref, base = scene
+    s = small()
+    b = staged_baseline(ref, base, 2, s)
+    seen = []
+    r = construct(ref, base, None, s, progress=seen.append)
+    assert r.metrics["psnr"] > b.metrics["psnr"] + 0.5, (r.metrics["psnr"], b.metrics["psnr"])
+    assert r.metrics["cracks"] == 0 and b.metrics["cracks"] == 0
+    assert (r.micromesh.levels == 2).all()
+    assert len(seen) == 61 and seen[-1].phase == "done"
+    assert all(p.iteration <= p.total_iterations for p in seen)
+    # Result is in the caller's frame: near the radius-2 sphere around (1, 1, 1).
+    rad = np.linalg.norm(r.micromesh.micro_vertex_positions() - 1.0, axis=1)
+    assert 1.7 < rad.min() and rad.max() < 2.3
+    assert r.bounds.scale.shape == (base.n_vertices,)
+    assert set(r.timings) >= {"setup", "reference_images", "optimize", "subdivide", "metrics"}
+
+
+def test_subdivision_keeps_surface(scene):
+    ref, base = scene
+    s = small(iterations=6, subdivide_at=(5,), max_level=1, lr_base=1e-12, lr_disp=1e-12,
+              init_new_levels="interpolate", compute_metrics=False, w_sv=0, w_iso=0)
+    before = construct(ref, base, None, small(iterations=5, subdivide_at=(), max_level=0,
+                                              lr_base=1e-12, lr_disp=1e-12, compute_metrics=False))
+    after = construct(ref, base, None, s)
+    assert (after.micromesh.levels == 1).all() and (before.micromesh.levels == 0).all()
+    # Every micro-vertex of the subdivided mesh lies on the level-0 displaced surface.
+    from core.bake import nearest_points
+    old_surface = before.micromesh_unit.tessellate().to_trimesh()
+    _, _, dist = nearest_points(after.micromesh_unit.micro_vertex_positions(), old_surface)
+    assert dist.max() < 1e-5
+
+
+def test_cancel_within_one_iteration(scene):
+    ref, base = scene
+    calls = {"n": 0}
+    seen = []
+
+    def stop():
+        calls["n"] += 1
+        return len(seen) >= 3
+
+    with pytest.raises(ConstructCancelled):
+        construct(ref, base, None, small(), progress=seen.append, should_stop=stop)
+    assert len(seen) == 3
+
+
+def test_reproducible(scene):
+    ref, base = scene
+    s = small(iterations=12, subdivide_at=(4,), max_level=1, compute_metrics=False)
+    a = construct(ref, base, None, s)
+    b = construct(ref, base, None, s)
+    assert np.array_equal(a.micromesh.displacements, b.micromesh.displacements)
+    assert np.array_equal(a.micromesh.base.vertices, b.micromesh.base.vertices)
+
+
+def test_adaptive_lod_and_budget(scene):
+    ref, base = scene
+    budget = 12 * base.n_faces                      # between uniform level 1 (4) and 2 (16)
+    s = small(iterations=25, subdivide_at=(5, 15), max_level=2, lod="in_optim", min_level=1,
+              budget_micro_triangles=budget, compute_metrics=False)
+    r = construct(ref, base, None, s)
+    lv = r.micromesh.levels
+    assert int(np.sum(4 ** lv)) <= budget
+    assert lv.min() >= 1 and lv.max() == 2
+    assert 1 in r.gains
+
+
+def test_bad_inputs(scene):
+    ref, base = scene
+    with pytest.raises(ConstructError):
+        construct(base, ref, None, small())
+    with pytest.raises(SettingsError):
+        apply_overrides(small(), ["nonsense=1"])
+    with pytest.raises(SettingsError):
+        apply_overrides(small(), ["max_level=7"])
+    s = apply_overrides(small(), ["subdivide_at=10,20", "reparameterize=false", "w_sv=2"])
+    assert s.subdivide_at == (10, 20) and s.reparameterize is False and s.w_sv == 2.0
