@@ -5,7 +5,9 @@ face of the nearer pixel (background is farthest; ties to the smaller id) is tes
 silhouette edge -- a boundary edge, or one whose neighbouring face folds over it in this view
 (its opposite vertex projects to the same side of the edge as the face's own third vertex, or
 behind the eye) --
-that crosses the segment between the two pixel centres at t in [0, 1] (t measured from a). The
+that crosses the segment between the two pixel centres at t in [0, 1] (t measured from a);
+horizontal pairs only consider edges at least as steep as the diagonal, vertical pairs only
+the flatter ones, as nvdiffrast does, so an edge's motion is counted once. The
 pixel whose box the edge cuts gets the other pixel's colour blended in by the cut fraction:
 t >= 1/2 -> b += (t - 1/2) (a - b), else a += (1/2 - t) (b - a). t depends on the edge's projected
 vertices, so the gradient reaches the vertices on the outline. ``torch_path`` has the same rule.
@@ -63,6 +65,11 @@ def _pair_code(verts, faces, m, tb, db, fb, ra, ca, rb, cb, vertical, width, hei
         else:
             aa, ab, ca_, cb_ = xa, xb, ya, yb
         if not ((ca_ <= fixed and fixed < cb_) or (cb_ <= fixed and fixed < ca_)):
+            continue
+        # each edge is handled by one pair direction only: horizontal pairs take the edges that
+        # are at least as steep as diagonal, vertical pairs the flatter ones (no double count)
+        steep = abs(cb_ - ca_) - abs(ab - aa)
+        if (vertical and steep <= 0) or (not vertical and steep < 0):
             continue
         te = aa + (fixed - ca_) * (ab - aa) / (cb_ - ca_) - p0
         if not (te >= 0.0 and te <= 1.0):

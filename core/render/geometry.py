@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import torch
 
-NORMAL_EPS = 1e-30
-"""Added to squared lengths before normalising, so that zero vectors give 0, never NaN."""
+NORMAL_EPS = 1e-20
+"""Added to squared lengths before normalising, so that zero vectors give 0, never NaN (small
+enough to be negligible for real faces, large enough that float32 backward cannot overflow)."""
 
 
 def normalize(v: torch.Tensor) -> torch.Tensor:

@@ -216,6 +216,8 @@ def antialias_torch(color: torch.Tensor, verts: torch.Tensor, faces: torch.Tenso
                 sil = (o < 0) | (co[:, 2] <= 0) | (side_o * side_c >= 0)
             ya, yb = across[:, i], across[:, j]
             straddle = ((ya <= fixed) & (fixed < yb)) | ((yb <= fixed) & (fixed < ya))
+            steep = (yb - ya).abs() - (along[:, j] - along[:, i]).abs()
+            straddle &= (steep > 0) if axis == 1 else (steep >= 0)  # one direction per edge
             den = torch.where(straddle, yb - ya, torch.ones_like(ya))
             cross = along[:, i] + (fixed - ya) * (along[:, j] - along[:, i]) / den
             te = cross - p0
