@@ -8,7 +8,7 @@ surface point ``p`` and project it on the direction: ``d = D·(p − o)/|D|²``.
 Precision: Embree traces in float32 (in a frame centred on the reference's bounding box), then
 each hit is re-intersected in float64 with the plane of the triangle Embree reported, so a hit
 is exact up to which of two adjacent triangles was reported near a shared edge (a second-order
-error). Measured error on a unit sphere is ~1e-7 of the radius (tests check 1e-4).
+error). Measured: hits lie within 3e-16·R of an icosphere mesh of radius R (tests check 1e-4·R).
 """
 from __future__ import annotations
 
@@ -118,6 +118,25 @@ class _NearestIndex:
         rows = np.arange(n)
         return cp.reshape(n, k, 3)[rows, j], cand[rows, j], np.sqrt(d2[rows, j])
 
+    def _ball(self, q: np.ndarray, best: np.ndarray, workers: int, budget: int = 1 << 21):
+        """Exact answer from all centroids within best + R, in chunks of bounded size."""
+        m = len(self.tri)
+        counts = self.tree.query_ball_point(q, best + self.radius + 1e-12, workers=workers,
+                                            return_length=True)
+        p, f, d = np.empty((len(q), 3)), np.empty(len(q), np.int64), np.empty(len(q))
+        start = 0
+        while start < len(q):
+            csum = np.cumsum(counts[start:])
+            stop = start + max(1, int(np.searchsorted(csum, budget, side="right")))
+            balls = self.tree.query_ball_point(q[start:stop], best[start:stop] + self.radius + 1e-12,
+                                               workers=workers)
+            lens = np.array([len(b) for b in balls])
+            cand = np.full((stop - start, int(lens.max())), m, np.int64)
+            cand[np.arange(cand.shape[1])[None, :] < lens[:, None]] = np.concatenate(balls)
+            p[start:stop], f[start:stop], d[start:stop] = self._eval(q[start:stop], cand)
+            start = stop
+        return p, f, d
+
     def query(self, q: np.ndarray, k: int = 8, chunk: int = 1 << 19,
               workers: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         n = len(q)
@@ -134,20 +153,14 @@ class _NearestIndex:
             p, f, d = self._eval(qs, cand)
             todo = np.flatnonzero((dk[:, -1] - self.radius < d) & (k < m))
             kk = k
-            while len(todo) and kk < min(64, m):
+            while len(todo) and kk < min(512, m):
                 kk = min(4 * kk, m)
                 dk2, cand2 = self.tree.query(qs[todo], k=kk, workers=workers)
                 p2, f2, d2 = self._eval(qs[todo], cand2)
                 p[todo], f[todo], d[todo] = p2, f2, d2
                 todo = todo[(dk2[:, -1] - self.radius < d2) & (kk < m)]
             if len(todo):  # exact: every centroid that could hold a closer triangle
-                balls = self.tree.query_ball_point(qs[todo], d[todo] + self.radius + 1e-12,
-                                                   workers=workers)
-                lens = np.array([len(b) for b in balls])
-                width = int(lens.max())
-                cand3 = np.full((len(todo), width), m, np.int64)
-                cand3[np.arange(width)[None, :] < lens[:, None]] = np.concatenate(balls)
-                p[todo], f[todo], d[todo] = self._eval(qs[todo], cand3)
+                p[todo], f[todo], d[todo] = self._ball(qs[todo], d[todo], workers)
             point[s:s + step], face[s:s + step], dist[s:s + step] = p, f, d
         return point, face, dist
 
