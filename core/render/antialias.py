@@ -19,6 +19,7 @@ scattered once, into per-slot buffers as in ``shade``.
 """
 from __future__ import annotations
 
+import numpy as np
 from numba import njit, prange
 
 from .shade import add_vertex_grad, clip_xyw
@@ -123,11 +124,14 @@ def _pair_at(q, r, c, code_h, code_v, b, width, height):
 
 
 @njit(parallel=True, cache=True)
-def antialias_forward(color, verts, faces, mvp, code_h, code_v, out):
+def antialias_forward(color, verts, faces, mvp, code_h, code_v, out, target, sign, rowsum, fuse_l1):
+    """out <- antialiased color. With ``fuse_l1`` also sign <- sign(out - target) (int8) and
+    rowsum[row] <- sum |out - target| over the row (the L1 loss without another image pass)."""
     nb, height, width, nc = color.shape
     for row in prange(nb * height):
         b, r = row // height, row % height
         m = mvp[b]
+        acc = 0.0
         for c in range(width):
             for ch in range(nc):
                 out[b, r, c, ch] = color[b, r, c, ch]
@@ -143,24 +147,50 @@ def antialias_forward(color, verts, faces, mvp, code_h, code_v, out):
                 rs, cs = (ra, ca) if me_is_b else (rb, cb)
                 for ch in range(nc):
                     out[b, r, c, ch] += alpha * (color[b, rs, cs, ch] - color[b, r, c, ch])
+            if fuse_l1:
+                for ch in range(nc):
+                    d = np.float64(out[b, r, c, ch]) - np.float64(target[b, r, c, ch])
+                    acc += abs(d)
+                    sign[b, r, c, ch] = 1 if d > 0 else (-1 if d < 0 else 0)
+        rowsum[row] = acc
     return 0
 
 
 @njit(parallel=True, cache=True)
-def antialias_backward(color, verts, faces, mvp, code_h, code_v, gout, gcolor, gv):
-    """gcolor (B, H, W, C) <- d/d color; gv (SLOTS, N, 3) zeros on entry <- d/d verts."""
+def l1_forward(img, target, sign, rowsum):
+    """sign <- sign(img - target) (int8), rowsum[row] <- sum over the row of |img - target|."""
+    nb, height, width, nc = img.shape
+    for row in prange(nb * height):
+        b, r = row // height, row % height
+        acc = 0.0
+        for c in range(width):
+            for ch in range(nc):
+                d = np.float64(img[b, r, c, ch]) - np.float64(target[b, r, c, ch])
+                acc += abs(d)
+                sign[b, r, c, ch] = 1 if d > 0 else (-1 if d < 0 else 0)
+        rowsum[row] = acc
+    return 0
+
+
+@njit(parallel=True, cache=True)
+def antialias_backward(color, verts, faces, mvp, code_h, code_v, gout, gscale, gcolor, gv):
+    """gcolor (B, H, W, C) <- d/d color; gv (SLOTS, N, 3) <- per-slot parts of d/d verts.
+
+    ``gout`` may be a float image or an int8 sign image (fused L1 loss); it is scaled by
+    ``gscale``."""
     nb, height, width, nc = color.shape
     nslot = gv.shape[0]
     nrows = nb * height
     hw, hh = 0.5 * width, 0.5 * height
     for k in prange(nslot):
         gvk = gv[k]
-        for row in range(k, nrows, nslot):
+        gvk[:] = 0.0
+        for row in range(k * nrows // nslot, (k + 1) * nrows // nslot):
             b, r = row // height, row % height
             m = mvp[b]
             for c in range(width):
                 for ch in range(nc):
-                    gcolor[b, r, c, ch] = gout[b, r, c, ch]
+                    gcolor[b, r, c, ch] = gscale * gout[b, r, c, ch]
                 for q in range(4):
                     code, ra, ca, rb, cb, vertical, me_is_b = _pair_at(q, r, c, code_h, code_v, b, width, height)
                     if code < 0:
@@ -172,15 +202,15 @@ def antialias_backward(color, verts, faces, mvp, code_h, code_v, gout, gcolor, g
                     rd, cd, rs, cs = (rb, cb, ra, ca) if to_b else (ra, ca, rb, cb)
                     if to_b == me_is_b:  # this pixel is the destination
                         for ch in range(nc):
-                            gcolor[b, r, c, ch] -= alpha * gout[b, r, c, ch]
+                            gcolor[b, r, c, ch] -= alpha * gscale * gout[b, r, c, ch]
                     else:
                         for ch in range(nc):
-                            gcolor[b, r, c, ch] += alpha * gout[b, rd, cd, ch]
+                            gcolor[b, r, c, ch] += alpha * gscale * gout[b, rd, cd, ch]
                     if me_is_b:
                         continue  # the pair's vertex gradient is scattered once, by pixel a
                     gt = 0.0
                     for ch in range(nc):
-                        gt += gout[b, rd, cd, ch] * (color[b, rs, cs, ch] - color[b, rd, cd, ch])
+                        gt += gscale * gout[b, rd, cd, ch] * (color[b, rs, cs, ch] - color[b, rd, cd, ch])
                     if not to_b:
                         gt = -gt
                     if gt == 0.0:

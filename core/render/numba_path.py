@@ -1,7 +1,9 @@
 """CPU backend: the numba rasteriser and fused per-pixel kernels wrapped as autograd Functions.
 
-``render_numba`` = vertex normals (torch, O(N + M), autograd) -> fused shade kernel (analytic
-backward) -> antialias kernel (analytic backward). The L1 loss is reduced in torch on top.
+``render_numba`` = vertex normals (numba, analytic backward) -> fused shade kernel (analytic
+backward) -> antialias kernel (analytic backward). ``loss_numba`` fuses the L1 loss into the
+antialias pass (or a single L1 pass without antialiasing): the image never goes through torch,
+and the backward reads an int8 sign image.
 """
 from __future__ import annotations
 
@@ -16,7 +18,7 @@ from .sh import SH_QUADRATIC
 from .topology import faces_int32
 from .types import Raster
 
-__all__ = ["rasterize_numba", "render_numba", "loss_numba"]
+__all__ = ["rasterize_numba", "render_numba", "loss_numba", "shade_numba", "antialias_numba"]
 
 _QA, _QB, _QK = (np.ascontiguousarray(a, dtype=np.float64) for a in SH_QUADRATIC)
 
@@ -25,14 +27,10 @@ def _np(t: torch.Tensor) -> np.ndarray:
     return t.detach().contiguous().numpy()
 
 
-def _faces_np(faces: torch.Tensor) -> np.ndarray:
-    return faces_int32(faces)
-
-
 class _Shade(torch.autograd.Function):
     @staticmethod
     def forward(ctx, verts, vnormals, faces, mvp, tri, mode: int):
-        v, f, m, t = _np(verts), _faces_np(faces), _np(mvp), _np(tri)
+        v, f, m, t = _np(verts), faces_int32(faces), _np(mvp), _np(tri)
         vn = _np(vnormals) if vnormals is not None else np.zeros((1, 3), v.dtype)
         nc = 3 if mode in (sk.MODE_SHADED, sk.MODE_NORMAL) else 1
         out = np.zeros(t.shape + (nc,), dtype=v.dtype)
@@ -49,39 +47,75 @@ class _Shade(torch.autograd.Function):
             return None, None, None, None, None, None
         v = _np(verts)
         vn = _np(vnormals) if has_vn else np.zeros((1, 3), v.dtype)
-        gv = np.zeros((sk.SLOTS,) + v.shape, dtype=v.dtype)
-        gn = np.zeros((sk.SLOTS,) + vn.shape, dtype=v.dtype)
+        gv = sk.slot_buffer("shade_v", len(v), v.dtype)
+        gn = sk.slot_buffer("shade_n", len(vn), v.dtype)
         g = _np(gout.to(verts.dtype))
-        sk.shade_backward(v, _faces_np(faces), vn, _np(mvp), _np(tri), mode, _QA, _QB, _QK, g, gv, gn)
-        gverts = torch.from_numpy(gv).sum(0)
-        gvn = torch.from_numpy(gn).sum(0) if has_vn else None
-        return gverts, gvn, None, None, None, None
+        sk.shade_backward(v, faces_int32(faces), vn, _np(mvp), _np(tri), mode, _QA, _QB, _QK, g, gv, gn)
+        gvn = torch.from_numpy(sk.reduce(gn)) if has_vn else None
+        return torch.from_numpy(sk.reduce(gv)), gvn, None, None, None, None
+
+
+def _codes(verts: np.ndarray, f: np.ndarray, m: np.ndarray, raster: Raster, vt: torch.Tensor,
+           faces: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
+    t = _np(raster.tri_id)
+    flags = raster.edge_flags
+    flags = flags.numpy() if flags is not None else edge_flags_numba(vt, faces, raster.mvp, raster.tri_id)
+    code_h = np.empty(t.shape, np.int32)
+    code_v = np.empty(t.shape, np.int32)
+    aa.pair_codes(verts, f, m, t, _np(raster.depth), flags, code_h, code_v)
+    return code_h, code_v
 
 
 class _Antialias(torch.autograd.Function):
+    """Antialiased image, or with a target the fused mean L1 loss of the antialiased image."""
+
     @staticmethod
-    def forward(ctx, color, verts, faces, flags, mvp, tri, depth):
-        c, v, f, m, t = _np(color), _np(verts), _faces_np(faces), _np(mvp), _np(tri)
-        code_h = np.empty(t.shape, np.int32)
-        code_v = np.empty(t.shape, np.int32)
-        aa.pair_codes(v, f, m, t, _np(depth), flags, code_h, code_v)
+    def forward(ctx, color, verts, faces, raster, target):
+        c, v, f, m = _np(color), _np(verts), faces_int32(faces), _np(raster.mvp)
+        code_h, code_v = _codes(v, f, m, raster, verts, faces)
         out = np.empty_like(c)
-        aa.antialias_forward(c, v, f, m, code_h, code_v, out)
+        fuse = target is not None
+        tg = _np(target.to(color.dtype)) if fuse else c[:1, :1, :1, :1]
+        sign = np.empty(c.shape, np.int8) if fuse else np.zeros((1, 1, 1, 1), np.int8)
+        rowsum = np.zeros(c.shape[0] * c.shape[1])
+        aa.antialias_forward(c, v, f, m, code_h, code_v, out, tg, sign, rowsum, fuse)
         ctx.save_for_backward(color, verts)
-        ctx.stuff = (faces, mvp, code_h, code_v)
+        ctx.stuff = (faces, m, code_h, code_v, sign if fuse else None, c.size)
+        if fuse:
+            return torch.tensor(rowsum.sum() / c.size, dtype=color.dtype)
         return torch.from_numpy(out)
 
     @staticmethod
     def backward(ctx, gout):
         color, verts = ctx.saved_tensors
-        faces, mvp, code_h, code_v = ctx.stuff
-        c = _np(color)
-        v = _np(verts)
+        faces, m, code_h, code_v, sign, count = ctx.stuff
+        c, v = _np(color), _np(verts)
         gcolor = np.empty_like(c)
-        gv = np.zeros((sk.SLOTS,) + v.shape, dtype=v.dtype)
-        aa.antialias_backward(c, v, _faces_np(faces), _np(mvp), code_h, code_v,
-                              _np(gout.to(color.dtype)), gcolor, gv)
-        return torch.from_numpy(gcolor), torch.from_numpy(gv).sum(0), None, None, None, None, None
+        gv = sk.slot_buffer("aa_v", len(v), v.dtype)
+        if sign is not None:
+            g, scale = sign, float(gout) / count
+        else:
+            g, scale = _np(gout.to(color.dtype)), 1.0
+        aa.antialias_backward(c, v, faces_int32(faces), m, code_h, code_v, g, scale, gcolor, gv)
+        return torch.from_numpy(gcolor), torch.from_numpy(sk.reduce(gv)), None, None, None
+
+
+class _L1(torch.autograd.Function):
+    """Mean |img - target| with an int8 sign image for the backward."""
+
+    @staticmethod
+    def forward(ctx, img, target):
+        a, t = _np(img), _np(target.to(img.dtype))
+        sign = np.empty(a.shape, np.int8)
+        rowsum = np.zeros(a.shape[0] * a.shape[1])
+        aa.l1_forward(a, t, sign, rowsum)
+        ctx.stuff = (sign, a.size)
+        return torch.tensor(rowsum.sum() / a.size, dtype=img.dtype)
+
+    @staticmethod
+    def backward(ctx, gout):
+        sign, count = ctx.stuff
+        return torch.from_numpy(sign).to(gout.dtype) * (gout / count), None
 
 
 def shade_numba(verts: torch.Tensor, faces: torch.Tensor, raster: Raster, kind: str) -> torch.Tensor:
@@ -94,10 +128,7 @@ def shade_numba(verts: torch.Tensor, faces: torch.Tensor, raster: Raster, kind: 
 def antialias_numba(color: torch.Tensor, verts: torch.Tensor, faces: torch.Tensor,
                     raster: Raster) -> torch.Tensor:
     """Analytic antialiasing of ``color`` (B, H, W, C), differentiable w.r.t. color and verts."""
-    flags = raster.edge_flags
-    flags = flags.numpy() if flags is not None else edge_flags_numba(verts, faces, raster.mvp, raster.tri_id)
-    return _Antialias.apply(color.to(verts.dtype), verts, faces, flags, raster.mvp, raster.tri_id,
-                            raster.depth)
+    return _Antialias.apply(color.to(verts.dtype), verts, faces, raster, None)
 
 
 def render_numba(verts: torch.Tensor, faces: torch.Tensor, raster: Raster, kind: str,
@@ -106,6 +137,9 @@ def render_numba(verts: torch.Tensor, faces: torch.Tensor, raster: Raster, kind:
     return antialias_numba(img, verts, faces, raster) if antialias else img
 
 
-def loss_numba(verts, faces, raster, target, antialias):
-    img = render_numba(verts, faces, raster, "shaded", antialias)
-    return (img - target.to(img.dtype)).abs().mean()
+def loss_numba(verts: torch.Tensor, faces: torch.Tensor, raster: Raster, target: torch.Tensor,
+               antialias: bool) -> torch.Tensor:
+    img = shade_numba(verts, faces, raster, "shaded")
+    if antialias:
+        return _Antialias.apply(img, verts, faces, raster, target)
+    return _L1.apply(img, target)

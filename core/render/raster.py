@@ -28,7 +28,7 @@ def _edge(fa, fb, xa, ya, xb, yb, px, py):
 
 @njit(cache=True)
 def project(verts, m, width, height, sc):
-    """sc[i] = (screen x, screen y, clip w, 1 if in front of the near plane else 0)."""
+    """sc[i] = (screen x, screen y, 1 / clip w, 1 if in front of the near plane else 0)."""
     hw, hh = 0.5 * width, 0.5 * height
     for i in range(verts.shape[0]):
         vx, vy, vz = np.float64(verts[i, 0]), np.float64(verts[i, 1]), np.float64(verts[i, 2])
@@ -38,7 +38,7 @@ def project(verts, m, width, height, sc):
         w = ((m[3, 0] * vx + m[3, 1] * vy) + m[3, 2] * vz) + m[3, 3]
         sc[i, 0] = (x / w + 1.0) * hw
         sc[i, 1] = (1.0 - y / w) * hh
-        sc[i, 2] = w
+        sc[i, 2] = 1.0 / w
         sc[i, 3] = 1.0 if (w > 0 and z >= -w) else 0.0
     return 0
 
@@ -71,7 +71,7 @@ def _raster_kernel(verts, faces, opp, mvp, width, height, scratch, tri, depth, f
                 if area == 0.0 or not math.isfinite(area):
                     continue
                 pos = area > 0
-                iw0, iw1, iw2 = 1.0 / sc[i0, 2], 1.0 / sc[i1, 2], 1.0 / sc[i2, 2]
+                iw0, iw1, iw2 = sc[i0, 2], sc[i1, 2], sc[i2, 2]
                 for r in range(int(r0), int(r1) + 1):
                     py = r + 0.5
                     for c in range(int(c0), int(c1) + 1):
@@ -88,7 +88,7 @@ def _raster_kernel(verts, faces, opp, mvp, width, height, scratch, tri, depth, f
                         s2 = e2 if pos else -e2
                         if s2 < 0 or (s2 == 0 and not t2):
                             continue
-                        inv_w = ((e1 / area) * iw0 + (e2 / area) * iw1) + (e0 / area) * iw2
+                        inv_w = ((e1 * iw0 + e2 * iw1) + e0 * iw2) / area
                         if not inv_w > 0:
                             continue
                         d = np.float32(1.0 / inv_w)

@@ -5,7 +5,7 @@ Barycentrics are recomputed from the vertex positions (so they carry gradients, 
 nvdiffrast's rasterize backward): with clip coordinates (x_i, y_i, w_i) of the face's vertices and
 pixel NDC (x, y), u_i = x_i - x w_i, t_i = y_i - y w_i, beta_i = u_j t_k - u_k t_j (i, j, k cyclic)
 and b_i = beta_i / sum(beta). The backward scatters vertex gradients into K per-slot buffers
-(rows k, k + K, ... go to slot k), summed in a fixed order: results do not depend on the number
+(slot k owns the k-th contiguous block of image rows), summed in a fixed order: results do not depend on the number
 of threads and no two threads ever write the same memory.
 """
 from __future__ import annotations
@@ -79,6 +79,38 @@ def _interp_normal(vn, i0, i1, i2, b0, b1, b2):
     n2 = b0 * vn[i0, 2] + b1 * vn[i1, 2] + b2 * vn[i2, 2]
     inv = 1.0 / math.sqrt(n0 * n0 + n1 * n1 + n2 * n2 + NORMAL_EPS)
     return n0 * inv, n1 * inv, n2 * inv, inv
+
+
+@njit(parallel=True, cache=True)
+def reduce_slots(buf, out):
+    """out (N, 3) <- buf (K, N, 3) summed over slots in slot order (deterministic)."""
+    for i in prange(buf.shape[1]):
+        for j in range(3):
+            s = 0.0
+            for k in range(buf.shape[0]):
+                s += buf[k, i, j]
+            out[i, j] = s
+    return 0
+
+
+_POOL: dict = {}
+
+
+def slot_buffer(name: str, n: int, dtype) -> np.ndarray:
+    """A reused (SLOTS, n, 3) scratch array (the kernels zero their own slot): saves page faults."""
+    key = (name, n, np.dtype(dtype).str)
+    buf = _POOL.get(key)
+    if buf is None:
+        for k in [k for k in _POOL if k[0] == name]:
+            del _POOL[k]
+        buf = _POOL[key] = np.empty((SLOTS, n, 3), dtype=dtype)
+    return buf
+
+
+def reduce(buf: np.ndarray) -> np.ndarray:
+    out = np.empty(buf.shape[1:], dtype=buf.dtype)
+    reduce_slots(buf, out)
+    return out
 
 
 @njit(parallel=True, cache=True)
@@ -160,13 +192,15 @@ def pixel_backward(verts, faces, vn, m, f, x, y, mode, qa, qb, qk, g0, g1, g2, g
 
 @njit(parallel=True, cache=True)
 def shade_backward(verts, faces, vn, mvp, tri, mode, qa, qb, qk, gout, gv, gn):
-    """gv, gn (SLOTS, N, 3) zeros on entry <- d(sum gout * out)/d verts, d/d vertex normals."""
+    """gv, gn (SLOTS, N, 3) <- per-slot parts of d(sum gout * out)/d verts, d/d vertex normals."""
     nb, height, width = tri.shape
     nslot = gv.shape[0]
     nrows = nb * height
     for k in prange(nslot):
         gvk, gnk = gv[k], gn[k]
-        for row in range(k, nrows, nslot):
+        gvk[:] = 0.0
+        gnk[:] = 0.0
+        for row in range(k * nrows // nslot, (k + 1) * nrows // nslot):
             b, r = row // height, row % height
             m = mvp[b]
             y = 1.0 - (r + 0.5) * (2.0 / height)

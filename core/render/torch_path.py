@@ -84,7 +84,7 @@ def rasterize_torch(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor,
             ar = area[rep]
             iw = aw[rep].reciprocal()
             # lam[e] belongs to the vertex opposite edge e, i.e. vertex (e + 2) % 3
-            inv_w = ((lam[1] / ar) * iw[:, 0] + (lam[2] / ar) * iw[:, 1]) + (lam[0] / ar) * iw[:, 2]
+            inv_w = ((lam[1] * iw[:, 0] + lam[2] * iw[:, 1]) + lam[0] * iw[:, 2]) / ar
             inside &= inv_w > 0
             d32 = (1.0 / inv_w).to(torch.float32)
             key = (d32.view(torch.int32).to(torch.int64) << 32) | rep
