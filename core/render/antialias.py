@@ -2,9 +2,8 @@
 
 For every horizontal and vertical pair of neighbouring pixels a, b with different face ids, the
 face of the nearer pixel (background is farthest; ties to the smaller id) is tested for a
-silhouette edge -- a boundary edge, or one whose neighbouring face folds over it in this view
-(its opposite vertex projects to the same side of the edge as the face's own third vertex, or
-behind the eye) --
+silhouette edge -- a boundary edge, or one whose neighbouring face faces the other way in this
+view (or is degenerate / crosses the near plane) --
 that crosses the segment between the two pixel centres at t in [0, 1] (t measured from a);
 horizontal pairs only consider edges at least as steep as the diagonal, vertical pairs only
 the flatter ones, as nvdiffrast does, so an edge's motion is counted once. The

@@ -10,7 +10,7 @@ import torch
 
 from . import torch_path
 from .geometry import vertex_normals
-from .topology import opposite_vertices
+from .topology import face_neighbours
 from .types import Raster, RenderError, camera_mvp, check_backend, check_mesh, check_raster
 
 KINDS = ("shaded", "normal", "mask", "depth")
@@ -61,7 +61,7 @@ def render(verts: torch.Tensor, faces: torch.Tensor, cams, *, kind: str = "shade
     vn = vertex_normals(verts, faces) if kind in ("shaded", "normal") else None
     img = torch_path.shade_torch(verts, faces, vn, raster.mvp, raster.tri_id, kind)
     if antialias:
-        img = torch_path.antialias_torch(img, verts, faces, opposite_vertices(faces), raster.mvp,
+        img = torch_path.antialias_torch(img, verts, faces, face_neighbours(faces), raster.mvp,
                                          raster.tri_id, raster.depth)
     return img
 

@@ -6,6 +6,7 @@ Coverage uses the same float64 arithmetic as ``torch_path.rasterize_torch``: can
 functions (from the lower to the higher vertex id, so a shared edge gives exactly opposite
 values; E == 0 belongs to the face that walks the edge upwards in id) and the nearest float32
 depth wins, ties to the smaller face id. Faces with a vertex behind the near plane are dropped.
+A post-pass per view stores each pixel's silhouette-edge bits for the antialiasing.
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ import numpy as np
 import torch
 from numba import njit, prange
 
-from .topology import faces_int32, opposite_vertices_int32
+from .topology import face_neighbours_int32, faces_int32
 
 
 @njit(inline="always")
@@ -44,18 +45,22 @@ def project(verts, m, width, height, sc):
 
 
 @njit(parallel=True, cache=True)
-def _raster_kernel(verts, faces, opp, mvp, width, height, scratch, tri, depth, flags):
+def _raster_kernel(verts, faces, nbr, mvp, width, height, scratch, facing, tri, depth, flags):
     nb = mvp.shape[0]
     nslot = scratch.shape[0]
     for slot in prange(nslot):
         sc = scratch[slot]
         for b in range(slot, nb, nslot):
             project(verts, mvp[b], width, height, sc)
+            fc = facing[slot]
             tb = tri[b]
             db = depth[b]
             for f in range(faces.shape[0]):
                 i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
                 x0, y0, x1, y1, x2, y2 = sc[i0, 0], sc[i0, 1], sc[i1, 0], sc[i1, 1], sc[i2, 0], sc[i2, 1]
+                area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
+                ok = sc[i0, 3] != 0.0 and sc[i1, 3] != 0.0 and sc[i2, 3] != 0.0
+                fc[f] = 0 if not ok else (1 if area > 0 else (-1 if area < 0 else 0))
                 # bounding box of pixel centres first: most small faces cover none
                 c0 = max(math.ceil(min(x0, x1, x2) - 0.5), 0.0)
                 c1 = min(math.floor(max(x0, x1, x2) - 0.5), width - 1.0)
@@ -65,10 +70,7 @@ def _raster_kernel(verts, faces, opp, mvp, width, height, scratch, tri, depth, f
                 r1 = min(math.floor(max(y0, y1, y2) - 0.5), height - 1.0)
                 if not r0 <= r1:
                     continue
-                if sc[i0, 3] == 0.0 or sc[i1, 3] == 0.0 or sc[i2, 3] == 0.0:
-                    continue
-                area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
-                if area == 0.0 or not math.isfinite(area):
+                if not ok or area == 0.0 or not math.isfinite(area):
                     continue
                 pos = area > 0
                 iw0, iw1, iw2 = sc[i0, 2], sc[i1, 2], sc[i2, 2]
@@ -95,66 +97,60 @@ def _raster_kernel(verts, faces, opp, mvp, width, height, scratch, tri, depth, f
                         if d < db[r, c]:
                             db[r, c] = d
                             tb[r, c] = f
-            silhouette_flags(faces, opp, sc, tb, flags[b])
+            silhouette_flags(nbr, fc, tb, flags[b])
     return 0
 
 
-@njit(inline="always", cache=True)
-def _side(ax, ay, bx, by, px, py):
-    s = (bx - ax) * (py - ay) - (by - ay) * (px - ax)
-    return 1.0 if s > 0 else (-1.0 if s < 0 else 0.0)
-
-
-@njit(inline="always", cache=True)
-def face_flags(faces, opp, sc, f):
-    """Bit e set: edge e of face f is a silhouette in this view (boundary, or the neighbour's
-    opposite vertex lies on the same side of the edge as f's third vertex, or behind the eye)."""
-    bits = 0
-    for e in range(3):
-        ia, ib, ic = faces[f, e], faces[f, (e + 1) % 3], faces[f, (e + 2) % 3]
-        o = opp[f, e]
-        if o < 0 or sc[o, 3] == 0.0:
-            bits |= 1 << e
-            continue
-        ax, ay, bx, by = sc[ia, 0], sc[ia, 1], sc[ib, 0], sc[ib, 1]
-        if _side(ax, ay, bx, by, sc[o, 0], sc[o, 1]) * _side(ax, ay, bx, by, sc[ic, 0], sc[ic, 1]) >= 0:
-            bits |= 1 << e
-    return bits
-
-
 @njit(cache=True)
-def silhouette_flags(faces, opp, sc, tb, fb):
-    """Per covered pixel, the silhouette-edge bits of its face (``sc``: projected vertices)."""
+def silhouette_flags(nbr, fc, tb, fb):
+    """Per covered pixel, bit e set where edge e of its face is a silhouette in this view: no
+    neighbour across it, or the neighbour faces the other way (``fc``: per-face sign of the
+    screen area, 0 for degenerate faces or faces crossing the near plane)."""
     height, width = tb.shape
-    last, bits = -1, 0
     for r in range(height):
         for c in range(width):
             f = tb[r, c]
-            if f < 0:
-                fb[r, c] = 0
-                continue
-            if f != last:
-                last, bits = f, face_flags(faces, opp, sc, f)
+            bits = 0
+            if f >= 0:
+                s = fc[f]
+                for e in range(3):
+                    n = nbr[f, e]
+                    if n < 0 or fc[n] != s:
+                        bits |= 1 << e
             fb[r, c] = bits
     return 0
 
 
+@njit(cache=True)
+def face_facing(faces, sc, fc):
+    """fc[f] <- sign of the screen area of face f (0: degenerate or crossing the near plane)."""
+    for f in range(faces.shape[0]):
+        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+        x0, y0, x1, y1, x2, y2 = sc[i0, 0], sc[i0, 1], sc[i1, 0], sc[i1, 1], sc[i2, 0], sc[i2, 1]
+        area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
+        ok = sc[i0, 3] != 0.0 and sc[i1, 3] != 0.0 and sc[i2, 3] != 0.0
+        fc[f] = 0 if not ok else (1 if area > 0 else (-1 if area < 0 else 0))
+    return 0
+
+
 @njit(parallel=True, cache=True)
-def project_and_flag(verts, faces, opp, mvp, width, height, scratch, tri, flags):
+def project_and_flag(verts, faces, nbr, mvp, width, height, scratch, facing, tri, flags):
     """Silhouette-edge bits for an existing raster (e.g. one made by the torch backend)."""
     nb = mvp.shape[0]
     nslot = scratch.shape[0]
     for slot in prange(nslot):
-        sc = scratch[slot]
+        sc, fc = scratch[slot], facing[slot]
         for b in range(slot, nb, nslot):
             project(verts, mvp[b], width, height, sc)
-            silhouette_flags(faces, opp, sc, tri[b], flags[b])
+            face_facing(faces, sc, fc)
+            silhouette_flags(nbr, fc, tri[b], flags[b])
     return 0
 
 
-def _scratch(n_verts: int, n_views: int) -> np.ndarray:
+def _scratch(n_verts: int, n_faces: int, n_views: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per-thread-slot projected vertices and per-face facing signs."""
     slots = max(1, min(numba.get_num_threads(), n_views))
-    return np.empty((slots, n_verts, 4), dtype=np.float64)
+    return np.empty((slots, n_verts, 4), dtype=np.float64), np.empty((slots, n_faces), dtype=np.int8)
 
 
 def rasterize_numba(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor, width: int,
@@ -169,8 +165,8 @@ def rasterize_numba(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor,
     depth = np.full((nb, height, width), np.inf, dtype=np.float32)
     flags = np.zeros((nb, height, width), dtype=np.uint8)
     if len(f) and nb:
-        opp = opposite_vertices_int32(faces)
-        _raster_kernel(v, f, opp, m, int(width), int(height), _scratch(len(v), nb), tri, depth, flags)
+        sc, fc = _scratch(len(v), len(f), nb)
+        _raster_kernel(v, f, face_neighbours_int32(faces), m, int(width), int(height), sc, fc, tri, depth, flags)
     return torch.from_numpy(tri), torch.from_numpy(depth), torch.from_numpy(flags)
 
 
@@ -181,6 +177,7 @@ def edge_flags_numba(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor
     t = tri.contiguous().numpy()
     flags = np.zeros(t.shape, dtype=np.uint8)
     if len(faces) and len(t):
-        project_and_flag(v, faces_int32(faces), opposite_vertices_int32(faces), mvp.contiguous().numpy(),
-                         t.shape[2], t.shape[1], _scratch(len(v), len(t)), t, flags)
+        sc, fc = _scratch(len(v), len(faces), len(t))
+        project_and_flag(v, faces_int32(faces), face_neighbours_int32(faces), mvp.contiguous().numpy(),
+                         t.shape[2], t.shape[1], sc, fc, t, flags)
     return flags

@@ -1,9 +1,9 @@
 """Mesh connectivity the kernels need, cached per faces tensor (the optimiser reuses one).
 
-* ``opposite_vertices(faces)[f, e]``: across edge e = (faces[f, e], faces[f, (e + 1) % 3]), the
-  vertex of the other face that is not on the edge; -1 on a boundary or non-manifold edge. The
-  antialiasing calls an edge a silhouette when that vertex projects to the same side of the edge
-  as the face's own third vertex (the surface folds over the edge), or when there is none.
+* ``face_neighbours(faces)[f, e]``: the other face on edge e = (faces[f, e], faces[f, (e + 1) % 3]),
+  -1 on a boundary or non-manifold edge. The antialiasing calls an edge a silhouette when the two
+  faces face opposite ways in a view (or one is degenerate / behind the eye), or it has no
+  neighbour -- nvdiffrast's rule.
 * ``vertex_corners(faces)``: CSR (ptr (N+1,), corners) of each vertex's incident corners
   f * 3 + k, for race-free per-vertex gathers.
 """
@@ -20,26 +20,29 @@ _CACHE_SIZE = 8
 
 
 def _cached(faces: torch.Tensor, what: str, make: Callable[[np.ndarray], object]):
-    key = (what, faces.data_ptr(), tuple(faces.shape), str(faces.device), faces.dtype)
+    """Cache keyed by storage address, shape, dtype and the tensor's version counter. The entry
+    holds a reference to the tensor itself, so its memory cannot be reused by another tensor while
+    cached; in-place edits bump the version counter (shared by all views)."""
+    key = (what, faces.data_ptr(), tuple(faces.shape), tuple(faces.stride()), str(faces.device),
+           faces.dtype, faces._version)
     hit = _CACHE.get(key)
-    if hit is not None and torch.equal(hit[0], faces):
+    if hit is not None:
         _CACHE.move_to_end(key)
         return hit[1]
     value = make(faces.detach().cpu().numpy())
-    _CACHE[key] = (faces.detach().clone(), value)
+    _CACHE[key] = (faces, value)
     while len(_CACHE) > _CACHE_SIZE:
         _CACHE.popitem(last=False)
     return value
 
 
-def _opposite_numpy(f: np.ndarray) -> np.ndarray:
+def _neighbours_numpy(f: np.ndarray) -> np.ndarray:
     m = len(f)
-    opp = np.full(3 * m, -1, dtype=np.int64)
+    nbr = np.full(3 * m, -1, dtype=np.int32)
     if m == 0:
-        return opp.reshape(0, 3)
+        return nbr.reshape(0, 3)
     a = f.astype(np.int64)
     b = np.roll(a, -1, axis=1)
-    third = np.roll(a, -2, axis=1).ravel()
     n = int(a.max()) + 1
     key = (np.minimum(a, b) * n + np.maximum(a, b)).ravel()
     order = np.argsort(key, kind="stable")
@@ -49,14 +52,20 @@ def _opposite_numpy(f: np.ndarray) -> np.ndarray:
     # i starts a group of exactly two half-edges: eq[i+1] and not eq[i] and not eq[i+2]
     i = np.nonzero(eq[1:-1] & ~eq[:-2] & ~np.append(eq[2:-1], False))[0]
     h0, h1 = order[i], order[i + 1]
-    opp[h0] = third[h1]
-    opp[h1] = third[h0]
-    return opp.reshape(m, 3)
+    nbr[h0] = h1 // 3
+    nbr[h1] = h0 // 3
+    return nbr.reshape(m, 3)
 
 
-def opposite_vertices(faces: torch.Tensor) -> torch.Tensor:
-    """(M, 3) int64 vertex across each edge (-1: boundary / non-manifold), on faces' device."""
-    return _cached(faces, "opp", lambda f: torch.from_numpy(_opposite_numpy(f))).to(faces.device)
+def face_neighbours(faces: torch.Tensor) -> torch.Tensor:
+    """(M, 3) int64 face across each edge (-1: boundary / non-manifold), on faces' device."""
+    return _cached(faces, "nbr", lambda f: torch.from_numpy(_neighbours_numpy(f).astype(np.int64))
+                   ).to(faces.device)
+
+
+def face_neighbours_int32(faces: torch.Tensor) -> np.ndarray:
+    """``face_neighbours`` as a contiguous int32 numpy array, cached."""
+    return _cached(faces, "nbr32", _neighbours_numpy)
 
 
 def _corners_numpy(f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -76,8 +85,3 @@ def vertex_corners(faces: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
 def faces_int32(faces: torch.Tensor) -> np.ndarray:
     """Contiguous int32 numpy copy of CPU faces (halves the kernels' index traffic), cached."""
     return _cached(faces, "f32", lambda f: np.ascontiguousarray(f, dtype=np.int32))
-
-
-def opposite_vertices_int32(faces: torch.Tensor) -> np.ndarray:
-    """``opposite_vertices`` as a contiguous int32 numpy array, cached."""
-    return _cached(faces, "opp32", lambda f: _opposite_numpy(f).astype(np.int32))

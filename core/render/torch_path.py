@@ -153,15 +153,29 @@ def shade_torch(verts: torch.Tensor, faces: torch.Tensor, vnormals: torch.Tensor
     return out.view(nb, height, width, -1)
 
 
+def face_facing(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor, width: int,
+                height: int) -> torch.Tensor:
+    """(B, M) int8 sign of each face's screen area per view (0: degenerate or crossing the near
+    plane); same float64 arithmetic as the numba rasteriser."""
+    f = faces.long()
+    out = torch.empty((len(mvp), len(f)), dtype=torch.int8, device=verts.device)
+    for b in range(len(mvp)):
+        sx, sy, w, z = screen_coords(verts, mvp[b], width, height)
+        x, y = sx[f], sy[f]
+        area = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (y[:, 1] - y[:, 0]) * (x[:, 2] - x[:, 0])
+        ok = ((w[f] > 0) & (z[f] >= -w[f])).all(1)
+        out[b] = torch.where(ok, torch.sign(area), torch.zeros_like(area)).to(torch.int8)
+    return out
+
+
 def antialias_torch(color: torch.Tensor, verts: torch.Tensor, faces: torch.Tensor,
-                    opp: torch.Tensor, mvp: torch.Tensor, tri_id: torch.Tensor,
+                    nbr: torch.Tensor, mvp: torch.Tensor, tri_id: torch.Tensor,
                     depth: torch.Tensor) -> torch.Tensor:
     """nvdiffrast-style analytic antialiasing of (B, H, W, C) ``color``.
 
     For each horizontal and vertical pair of neighbouring pixels with different face ids, the
-    face of the nearer pixel is tested for a silhouette edge (boundary, or the neighbour face's
-    opposite vertex ``opp`` projects to the same side as the face's third vertex) crossing the
-    segment between the two pixel centres at t in [0, 1]. The pixel whose box the edge cuts gets
+    face of the nearer pixel is tested for a silhouette edge (boundary, or the neighbour face
+    ``nbr`` faces the other way in this view) crossing the segment between the two pixel centres at t in [0, 1]. The pixel whose box the edge cuts gets
     the other pixel's colour blended in by the cut fraction |t - 1/2|; t depends on the edge's
     projected vertices, so gradients reach them. Same rule as ``antialias.py``.
     """
@@ -169,6 +183,7 @@ def antialias_torch(color: torch.Tensor, verts: torch.Tensor, faces: torch.Tenso
     out = color
     dt = verts.dtype
     f_all = faces.long()
+    facing = face_facing(verts, faces, mvp, width, height)
     for axis in (2, 1):  # horizontal pairs (along W), then vertical pairs (along H)
         ida = tri_id.narrow(axis, 0, tri_id.shape[axis] - 1)
         idb = tri_id.narrow(axis, 1, tri_id.shape[axis] - 1)
@@ -203,17 +218,8 @@ def antialias_torch(color: torch.Tensor, verts: torch.Tensor, faces: torch.Tenso
         for e in range(3):
             i, j = e, (e + 1) % 3
             with torch.no_grad():
-                o = opp[occ, e]
-                vo = verts.detach()[o.clamp(min=0)]
-                co = torch.einsum("prk,pk->pr", m[:, (0, 1, 3), :3].detach(), vo) + m[:, (0, 1, 3), 3]
-                wo = torch.where(co[:, 2] > 0, co[:, 2], torch.ones_like(co[:, 2]))
-                ox = (co[:, 0] / wo + 1.0) * (0.5 * width)
-                oy = (1.0 - co[:, 1] / wo) * (0.5 * height)
-                k = (e + 2) % 3
-                ex, ey = sx[:, j].detach() - sx[:, i].detach(), sy[:, j].detach() - sy[:, i].detach()
-                side_o = torch.sign(ex * (oy - sy[:, i].detach()) - ey * (ox - sx[:, i].detach()))
-                side_c = torch.sign(ex * (sy[:, k].detach() - sy[:, i].detach()) - ey * (sx[:, k].detach() - sx[:, i].detach()))
-                sil = (o < 0) | (co[:, 2] <= 0) | (side_o * side_c >= 0)
+                nf = nbr[occ, e]
+                sil = (nf < 0) | (facing[bi, nf.clamp(min=0)] != facing[bi, occ])
             ya, yb = across[:, i], across[:, j]
             straddle = ((ya <= fixed) & (fixed < yb)) | ((yb <= fixed) & (fixed < ya))
             steep = (yb - ya).abs() - (along[:, j] - along[:, i]).abs()
