@@ -1,0 +1,250 @@
+"""Headless micro-mesh construction: ``python batch.py ARGS`` or ``blender -b --python batch.py -- ARGS``.
+
+With no ``--input`` it builds the built-in demo: a procedurally generated detailed mesh (an
+icosphere displaced by Blender's procedural textures, made at run time), decimated with
+Blender's Decimate modifier into a base and turned into a micro-mesh. With ``--input`` (one
+file or a folder of .ply / .obj / .glb / .gltf / .fbx / .blend) it does the same per input.
+Per input NAME it writes ``NAME.blend`` (holding ``NAME_micromesh``), ``NAME.metrics.json`` and
+with ``--ply`` ``NAME_micromesh.ply``. Bad input exits non-zero with a one-line reason.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+if str(HERE) not in sys.path:
+    sys.path.insert(0, str(HERE))
+
+SUFFIXES = (".ply", ".obj", ".glb", ".gltf", ".fbx", ".blend")
+
+
+class BatchError(ValueError):
+    """Bad input: reported as one line, exit status 2."""
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    if argv is None:
+        argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+    p = argparse.ArgumentParser(prog="batch.py", description=__doc__.split("\n")[0])
+    p.add_argument("--input", help="a mesh file or a folder of mesh files (default: the demo)")
+    p.add_argument("--output", default="out", help="output folder (default: out)")
+    p.add_argument("--preset", default="fast", help="fast, default, quality or paper (default: fast)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a construction setting (repeatable)")
+    p.add_argument("--method", default="auto", choices=("auto", "optimize", "projection"),
+                   help="auto: the optimiser when available; projection: the staged baseline")
+    p.add_argument("--level", type=int, default=None,
+                   help="uniform level of the projection method (default: the preset's max_level)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--target-faces", type=int, default=None, help="base triangles (Decimate)")
+    g.add_argument("--ratio", type=float, default=None,
+                   help="base triangles as a fraction of the input's (default 1/32)")
+    p.add_argument("--symmetry", choices=("X", "Y", "Z"), default=None)
+    p.add_argument("--cameras", type=int, default=0,
+                   help="place this many Fibonacci camera objects and construct with them")
+    p.add_argument("--ply", action="store_true", help="also write NAME_micromesh.ply")
+    p.add_argument("--threads", type=int, default=0, help="CPU threads (0: all usable cores)")
+    p.add_argument("--demo-subdivisions", type=int, default=7, help=argparse.SUPPRESS)
+    return p.parse_args(argv)
+
+
+def find_inputs(path: str | None) -> list[Path]:
+    if path is None:
+        return []
+    p = Path(path)
+    if not p.exists():
+        raise BatchError(f"input not found: {p}")
+    if p.is_dir():
+        files = sorted(f for f in p.iterdir() if f.suffix.lower() in SUFFIXES)
+        if not files:
+            raise BatchError(f"no {'/'.join(SUFFIXES)} files in {p}")
+        return files
+    if p.suffix.lower() not in SUFFIXES:
+        raise BatchError(f"unsupported file type '{p.suffix}' ({', '.join(SUFFIXES)})")
+    return [p]
+
+
+# ------------------------------------------------------------------ scene building (bpy)
+def demo_source(bpy, name: str = "demo_rock", subdivisions: int = 7):
+    """A detailed procedural mesh: an icosphere displaced by two procedural textures."""
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=subdivisions, radius=1.0)
+    obj = bpy.context.active_object
+    obj.name = name
+    for tex_type, size, strength in (("CLOUDS", 0.6, 0.35), ("VORONOI", 0.25, 0.08)):
+        tex = bpy.data.textures.new(f"{name}_{tex_type.lower()}", tex_type)
+        tex.noise_scale = size
+        mod = obj.modifiers.new(tex_type.title(), "DISPLACE")
+        mod.texture, mod.strength, mod.mid_level = tex, strength, 0.5
+    _apply_modifiers(bpy, obj)
+    return obj
+
+
+def _apply_modifiers(bpy, obj) -> None:
+    dg = bpy.context.evaluated_depsgraph_get()
+    mesh = bpy.data.meshes.new_from_object(obj.evaluated_get(dg))
+    old = obj.data
+    obj.modifiers.clear()
+    obj.data = mesh
+    mesh.name = obj.name
+    if old.users == 0:
+        bpy.data.meshes.remove(old)
+
+
+def import_source(bpy, path: Path):
+    """Import ``path`` into the (empty) scene; returns one mesh object named after the file."""
+    ext = path.suffix.lower()
+    before = set(bpy.data.objects)
+    try:
+        if ext == ".ply":
+            bpy.ops.wm.ply_import(filepath=str(path))
+        elif ext == ".obj":
+            bpy.ops.wm.obj_import(filepath=str(path))
+        elif ext in (".glb", ".gltf"):
+            _enable(bpy, "io_scene_gltf2")
+            bpy.ops.import_scene.gltf(filepath=str(path))
+        elif ext == ".fbx":
+            _enable(bpy, "io_scene_fbx")
+            bpy.ops.import_scene.fbx(filepath=str(path))
+        elif ext == ".blend":
+            bpy.ops.wm.open_mainfile(filepath=str(path))
+            before = set()
+    except RuntimeError as e:
+        raise BatchError(f"cannot read {path.name}: {str(e).strip().splitlines()[-1]}") from None
+    meshes = [o for o in bpy.data.objects if o.type == "MESH" and o not in before
+              and not o.get("micromesh_data") and o.micromesh_source is None]
+    meshes = [o for o in meshes if len(o.data.polygons)]
+    if not meshes:
+        raise BatchError(f"no mesh with faces in {path.name}")
+    obj = max(meshes, key=lambda o: len(o.data.polygons))
+    if len(meshes) > 1 and ext != ".blend":
+        with bpy.context.temp_override(active_object=obj, selected_editable_objects=meshes):
+            bpy.ops.object.join()
+    obj.name = path.stem
+    return obj
+
+
+def _enable(bpy, module: str) -> None:
+    import addon_utils
+
+    if module not in bpy.context.preferences.addons:
+        addon_utils.enable(module, default_set=True)
+
+
+# ------------------------------------------------------------------ one input
+def process(bpy, pkg, source, args, settings, out_dir: Path) -> dict:
+    """Base mesh, cameras, construction, write-back, save: the add-on's steps, headless."""
+    from micromesh.operators import bl_mesh, cameras_io, pipeline, writeback
+
+    name = source.name
+    t0 = time.perf_counter()
+    reference = bl_mesh.mesh_to_arrays(source)
+    if args.target_faces:
+        target = min(args.target_faces, reference.n_faces)
+    else:
+        target = max(4, int(round(reference.n_faces * (args.ratio or 1 / 32))))
+    base_tm = bl_mesh.decimate_object(source, target_faces=target, symmetry=args.symmetry)
+    base_obj = bpy.data.objects.new(f"{name}_base", bl_mesh.arrays_to_mesh(f"{name}_base",
+                                    base_tm.vertices, base_tm.faces))
+    bpy.context.scene.collection.objects.link(base_obj)
+    base_obj.micromesh_source, base_obj.display_type = source, "WIRE"
+    print(f"[{name}] reference {reference.n_faces} triangles -> base {base_tm.n_faces} "
+          f"({time.perf_counter() - t0:.1f} s)", flush=True)
+    cams = None
+    if args.cameras:
+        coll = cameras_io.place_cameras(bpy.context.scene, reference, args.cameras,
+                                        settings.camera_radius, settings.fov_y_deg)
+        cams = cameras_io.collection_cameras(coll, settings.train_resolution)
+    last = [0.0, ""]
+
+    def progress(p):
+        get = p.get if isinstance(p, dict) else (lambda k, d=None: getattr(p, k, d))
+        phase, now = str(get("phase", "")), time.perf_counter()
+        if phase != last[1] or now - last[0] > 2.0:
+            last[:] = [now, phase]
+            it, tot, ps = get("iteration", 0), get("total", 0), get("psnr", None)
+            extra = f" PSNR {ps:.2f}" if isinstance(ps, (int, float)) and ps == ps else ""
+            print(f"[{name}] {phase} {it}/{tot}{extra} ({now - t0:.1f} s)", flush=True)
+
+    outcome = pipeline.run(reference, base_tm, cams, settings, progress, lambda: False,
+                           level=args.level, method=args.method)
+    obj = writeback.write_result(bpy.context, source, base_obj, outcome)
+    m = outcome.metrics
+    m["total_time_s"] = time.perf_counter() - t0
+    out_dir.mkdir(parents=True, exist_ok=True)
+    blend = out_dir / f"{name}.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), compress=True)
+    (out_dir / f"{name}.metrics.json").write_text(json.dumps(
+        {"name": name, "object": obj.name, "method": outcome.method, "metrics": writeback._jsonable(m),
+         "settings": outcome.settings}, indent=1))
+    if args.ply:
+        from micromesh.core.meshio import write_ply
+
+        tess = outcome.micromesh.tessellate()
+        write_ply(out_dir / f"{name}_micromesh.ply", tess.vertices, tess.triangles)
+    print(f"[{name}] {obj.name}: reference {m['reference_faces']} triangles, base "
+          f"{m['base_faces']} triangles, {m['micro_vertices']} micro-vertices, "
+          f"{m['micro_triangles']} micro-triangles, shell volume {m['shell_volume']:.5f} "
+          f"(unit sphere), {outcome.method}, {m['total_time_s']:.1f} s -> {blend}", flush=True)
+    return m
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    t_start = time.perf_counter()
+    try:
+        inputs = find_inputs(args.input)
+        import micromesh_path
+
+        pkg = micromesh_path.ensure_package()
+        from micromesh.core.settings import SettingsError, apply_overrides, preset
+        from micromesh.core.threads import set_threads
+
+        try:
+            settings = apply_overrides(preset(args.preset), args.overrides)
+        except SettingsError as e:
+            raise BatchError(str(e)) from None
+        if args.level is not None and not 0 <= args.level <= 5:
+            raise BatchError("--level must be within 0..5")
+        if args.ratio is not None and not 0 < args.ratio <= 1:
+            raise BatchError("--ratio must be in (0, 1]")
+        import bpy
+
+        set_threads(args.threads or settings.threads)
+        if not hasattr(bpy.types.Object, "micromesh_source"):
+            from micromesh.operators import props
+
+            props.register()
+        out_dir = Path(args.output)
+        jobs = inputs or [None]
+        failures = 0
+        for path in jobs:
+            bpy.ops.wm.read_factory_settings(use_empty=True)
+            try:
+                if path is None:
+                    source = demo_source(bpy, subdivisions=args.demo_subdivisions)
+                    print(f"[demo] procedural source '{source.name}': "
+                          f"{sum(len(p.vertices) - 2 for p in source.data.polygons)} triangles", flush=True)
+                else:
+                    source = import_source(bpy, path)
+                process(bpy, pkg, source, args, settings, out_dir)
+            except (BatchError, ValueError) as e:
+                if len(jobs) == 1:
+                    raise BatchError(f"{path.name if path else 'demo'}: {e}") from None
+                failures += 1
+                print(f"batch.py: error: {path.name if path else 'demo'}: {e}", file=sys.stderr, flush=True)
+        print(f"done: {len(jobs) - failures}/{len(jobs)} in {time.perf_counter() - t_start:.1f} s", flush=True)
+        return 1 if failures else 0
+    except BatchError as e:
+        print(f"batch.py: error: {e}", file=sys.stderr, flush=True)
+        return 2
+
+
+if __name__ == "__main__":
+    code = main()
+    if code:
+        sys.exit(code)

@@ -1,0 +1,176 @@
+"""Operators of the topology pre-pass: make a base mesh, check it, place cameras."""
+from __future__ import annotations
+
+import bpy
+import numpy as np
+from bpy.props import BoolProperty
+
+from ..core.mesh import MeshError, TriMesh
+from . import bl_mesh, cameras_io, check
+
+
+def source_object(context) -> bpy.types.Object | None:
+    """The source: the scene setting, else the active mesh (a base/result's source if linked)."""
+    s = context.scene.micromesh
+    if s.source is not None:
+        return s.source
+    obj = context.active_object
+    if obj is None or obj.type != "MESH":
+        return None
+    return obj.micromesh_source or obj
+
+
+def base_object(context) -> bpy.types.Object | None:
+    s = context.scene.micromesh
+    if s.base is not None:
+        return s.base
+    obj = context.active_object
+    if obj is not None and obj.type == "MESH" and obj.micromesh_source is not None \
+            and not obj.get("micromesh_data"):
+        return obj
+    return None
+
+
+def base_arrays(base_obj: bpy.types.Object) -> tuple[TriMesh, np.ndarray]:
+    """World-space triangles of the base object's own mesh (no modifiers: it is what gets
+    written back) and the polygon of each triangle."""
+    mesh = base_obj.data
+    v, f = bl_mesh.mesh_arrays(mesh)
+    if len(f) == 0:
+        raise MeshError(f"base '{base_obj.name}' has no faces")
+    poly = np.empty(len(mesh.loop_triangles), np.int32)
+    mesh.loop_triangles.foreach_get("polygon_index", poly)
+    m = np.array(base_obj.matrix_world, dtype=np.float64)
+    return TriMesh(v @ m[:3, :3].T + m[:3, 3], f), poly.astype(np.int64)
+
+
+class MICROMESH_OT_make_base(bpy.types.Operator):
+    """Make a triangulated low-poly base mesh from the source with Blender's Decimate modifier"""
+    bl_idname = "micromesh.make_base"
+    bl_label = "Make Base Mesh"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return source_object(context) is not None
+
+    def execute(self, context):
+        s = context.scene.micromesh
+        src = source_object(context)
+        try:
+            kw = dict(target_faces=s.target_faces) if s.decimate_mode == "TARGET" else dict(ratio=s.ratio)
+            base = bl_mesh.decimate_object(
+                src, symmetry=None if s.symmetry == "NONE" else s.symmetry,
+                vertex_group=s.vertex_group, vertex_group_factor=s.vertex_group_factor,
+                invert_vertex_group=s.invert_vertex_group, **kw)
+        except ValueError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        name = f"{src.name}_base"
+        old = bpy.data.objects.get(name)
+        mesh = bl_mesh.arrays_to_mesh(name, base.vertices, base.faces)
+        if old is not None and old.micromesh_source == src:
+            old_mesh, old.data = old.data, mesh
+            old.matrix_world = ((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1))
+            if old_mesh.users == 0:
+                bpy.data.meshes.remove(old_mesh)
+            obj = old
+        else:
+            obj = bpy.data.objects.new(name, mesh)
+            coll = src.users_collection[0] if src.users_collection else context.scene.collection
+            coll.objects.link(obj)
+        obj.micromesh_source = src
+        obj.display_type = "WIRE"
+        s.source, s.base = src, obj
+        self.report({"INFO"}, f"Base mesh '{obj.name}': {base.n_faces} triangles, "
+                              f"{base.n_vertices} vertices")
+        return {"FINISHED"}
+
+
+class MICROMESH_OT_check_base(bpy.types.Operator):
+    """Report and select in Edit Mode what in the base mesh will hurt the micro-mesh"""
+    bl_idname = "micromesh.check_base"
+    bl_label = "Check Base Mesh"
+    bl_options = {"REGISTER", "UNDO"}
+
+    select: BoolProperty(name="Select Problems", default=True)
+
+    @classmethod
+    def poll(cls, context):
+        return base_object(context) is not None
+
+    def execute(self, context):
+        s = context.scene.micromesh
+        base_obj = base_object(context)
+        src = base_obj.micromesh_source or s.source
+        if base_obj.mode == "EDIT":
+            bpy.ops.object.mode_set(mode="OBJECT")
+        try:
+            base, tri_poly = base_arrays(base_obj)
+            ref = bl_mesh.mesh_to_arrays(src) if src is not None else None
+        except ValueError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        rep = check.check_base(base, ref)
+        s.check_report = "; ".join(rep.lines)
+        if self.select:
+            select_problems(context, base_obj, base, tri_poly, rep)
+        level = {"WARNING"} if rep.n_problems else {"INFO"}
+        self.report(level, f"{rep.n_problems} problems: " + "; ".join(rep.lines))
+        return {"FINISHED"}
+
+
+def select_problems(context, obj, base: TriMesh, tri_poly: np.ndarray, rep: check.CheckReport):
+    """Select the offending vertices, edges and faces of ``obj`` and enter Edit Mode."""
+    mesh = obj.data
+    vsel = np.zeros(len(mesh.vertices), bool)
+    fsel = np.zeros(len(mesh.polygons), bool)
+    faces = np.concatenate([rep.flipped_faces, rep.sliver_faces, rep.degenerate_faces])
+    fsel[tri_poly[faces]] = True
+    bad_edges = base.edges[rep.nonmanifold_edges]
+    vsel[bad_edges.reshape(-1)] = True
+    vsel[rep.valence_vertices] = True
+    vsel[base.faces[faces].reshape(-1)] = True
+    ev = np.empty(2 * len(mesh.edges), np.int32)
+    mesh.edges.foreach_get("vertices", ev)
+    esel = vsel[ev.reshape(-1, 2)].all(1)
+    mesh.vertices.foreach_set("select", vsel)
+    mesh.edges.foreach_set("select", esel)
+    mesh.polygons.foreach_set("select", fsel)
+    view_layer = context.view_layer
+    if obj.name in view_layer.objects:
+        for o in view_layer.objects.selected:
+            o.select_set(False)
+        view_layer.objects.active = obj
+        obj.select_set(True)
+        bpy.ops.object.mode_set(mode="EDIT")
+        context.tool_settings.mesh_select_mode = (True, True, True)
+
+
+class MICROMESH_OT_place_cameras(bpy.types.Operator):
+    """Place camera objects on a Fibonacci sphere around the source (replacing the previous set)"""
+    bl_idname = "micromesh.place_cameras"
+    bl_label = "Place Cameras"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return source_object(context) is not None
+
+    def execute(self, context):
+        s = context.scene.micromesh
+        src = source_object(context)
+        try:
+            ref = bl_mesh.mesh_to_arrays(src)
+        except ValueError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        coll = cameras_io.place_cameras(context.scene, ref, s.camera_count, s.camera_radius,
+                                        s.camera_fov, s.camera_collection)
+        s.camera_collection = coll
+        s.source = src
+        self.report({"INFO"}, f"{s.camera_count} cameras in '{coll.name}'")
+        return {"FINISHED"}
+
+
+CLASSES = (MICROMESH_OT_make_base, MICROMESH_OT_check_base, MICROMESH_OT_place_cameras)

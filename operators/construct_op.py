@@ -1,0 +1,228 @@
+"""The Construct operator: modal with a worker thread in the UI, synchronous in background.
+
+All bpy reads happen in the main thread before the worker starts (:func:`prepare`); the
+worker runs the bpy-free :func:`pipeline.run`; the modal timer drains the job's queue into the
+scene's run state (:func:`sync_state`) and, when done, writes the result
+(:func:`writeback.write_result`). Esc or the Cancel button stop the worker; nothing is written.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from functools import partial
+
+import bpy
+import numpy as np
+from bpy.props import EnumProperty
+
+from ..core.settings import SettingsError, apply_overrides, preset
+from . import base_ops, bl_mesh, cameras_io, job, pipeline, writeback
+
+
+@dataclass
+class Prepared:
+    """Everything the worker needs, read from bpy in the main thread."""
+
+    source: bpy.types.Object
+    base_obj: bpy.types.Object | None
+    work: object  # callable(progress, should_stop) -> writeback.Outcome
+
+
+def scene_settings(scene):
+    """The construction settings of the scene: preset, overrides, preferences (device, threads)."""
+    from .. import preferences
+
+    s = scene.micromesh
+    st = preset(s.preset)
+    over = [t for t in s.overrides.replace(",", " ").split() if t]
+    st = apply_overrides(st, over + [f"device={preferences.device()}"])
+    return st
+
+
+def prepare(context, method: str = "auto") -> Prepared:
+    """Read source, base, cameras and settings; raises ValueError with a user message."""
+    s = context.scene.micromesh
+    src = base_ops.source_object(context)
+    if src is None:
+        raise ValueError("no source: select a mesh object or set the source")
+    base_obj = base_ops.base_object(context)
+    reference = bl_mesh.mesh_to_arrays(src)
+    if base_obj is not None:
+        base, tri_poly = base_ops.base_arrays(base_obj)
+    else:
+        from ..core.mesh import TriMesh
+
+        v, f = bl_mesh.decimate(reference.vertices, reference.faces,
+                                target_faces=max(4, min(s.target_faces, reference.n_faces)))
+        base, tri_poly = TriMesh(v, f), None
+    levels = None
+    if s.keep_levels:
+        if base_obj is None or tri_poly is None:
+            raise ValueError("Keep Face Levels needs a base mesh object")
+        levels = writeback.base_levels(base_obj, tri_poly)
+        if levels is None:
+            raise ValueError(f"base '{base_obj.name}' has no micromesh_level face attribute")
+        method = "projection"
+    settings = scene_settings(context.scene)
+    cams = None
+    if s.use_scene_cameras and s.camera_collection is not None:
+        cams = cameras_io.collection_cameras(s.camera_collection, settings.train_resolution)
+    work = partial(_work, reference, base, cams, settings, levels, s.level, method)
+    return Prepared(src, base_obj, work)
+
+
+def _work(reference, base, cams, settings, levels, level, method, progress, should_stop):
+    from .. import preferences  # noqa: F401  (threads are pinned in the main thread)
+
+    return pipeline.run(reference, base, cams, settings, progress, should_stop,
+                        levels=levels, level=level, method=method)
+
+
+def sync_state(scene, state: job.JobState) -> None:
+    """Copy a job's progress into the scene's run state (what the panel shows)."""
+    s = scene.micromesh
+    s.progress = float(min(max(state.fraction, 0.0), 1.0))
+    s.phase = str(state.phase)
+    s.iteration = int(state.iteration)
+    s.psnr = float(state.psnr) if state.psnr == state.psnr else 0.0
+    s.eta_s = float(state.eta_s) if state.eta_s == state.eta_s else 0.0
+    s.status = state.status_text()
+
+
+def finish(context, prep: Prepared, outcome: writeback.Outcome) -> bpy.types.Object:
+    obj = writeback.write_result(context, prep.source, prep.base_obj, outcome)
+    s = context.scene.micromesh
+    s.source = prep.source
+    if prep.base_obj is not None:
+        s.base = prep.base_obj
+    return obj
+
+
+def _summary(obj, outcome) -> str:
+    m = outcome.metrics
+    return (f"'{obj.name}': {m.get('micro_triangles', 0)} micro-triangles on "
+            f"{m.get('base_faces', 0)} base faces, shell volume {m.get('shell_volume', 0):.4g}, "
+            f"{m.get('time_s', 0):.1f} s ({outcome.method})")
+
+
+class MICROMESH_OT_construct(bpy.types.Operator):
+    """Construct the micro-mesh of the source on the base mesh (Esc cancels)"""
+    bl_idname = "micromesh.construct"
+    bl_label = "Construct Micro-Mesh"
+    bl_options = {"REGISTER", "UNDO"}
+
+    method: EnumProperty(name="Method", default="AUTO", items=[
+        ("AUTO", "Auto", "The optimiser when available, else projection baking"),
+        ("OPTIMIZE", "Optimise", "Differentiable-rendering optimisation (core.construct)"),
+        ("PROJECTION", "Projection", "The staged baseline: uniform level, projection baking")])
+
+    _job: job.Job | None = None
+    _timer = None
+    _prep: Prepared | None = None
+
+    @classmethod
+    def poll(cls, context):
+        return job.active_job() is None and base_ops.source_object(context) is not None
+
+    def _prepare(self, context) -> Prepared | None:
+        try:
+            from .. import preferences
+
+            preferences.apply_threads()
+            return prepare(context, self.method.lower())
+        except (ValueError, SettingsError) as e:
+            self.report({"ERROR"}, str(e))
+            return None
+
+    def execute(self, context):
+        prep = self._prepare(context)
+        if prep is None:
+            return {"CANCELLED"}
+        scene = context.scene
+
+        def progress(p):
+            state = job.JobState()
+            job.Job._progress_into(state, p)
+            sync_state(scene, state)
+
+        try:
+            outcome = prep.work(progress, lambda: False)
+        except Exception as e:  # noqa: BLE001 - one line to the user
+            self.report({"ERROR"}, f"{type(e).__name__}: {e}")
+            return {"CANCELLED"}
+        obj = finish(context, prep, outcome)
+        scene.micromesh.progress, scene.micromesh.phase = 1.0, "done"
+        self.report({"INFO"}, _summary(obj, outcome))
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        prep = self._prepare(context)
+        if prep is None:
+            return {"CANCELLED"}
+        try:
+            self._job = job.Job(prep.work).start()
+        except job.JobBusy as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        self._prep = prep
+        context.scene.micromesh.running = True
+        self._timer = context.window_manager.event_timer_add(0.2, window=context.window)
+        context.window_manager.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            self._job.cancel()
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        state = self._job.poll()
+        sync_state(context.scene, state)
+        context.workspace.status_text_set(state.status_text())
+        for area in context.screen.areas:
+            if area.type == "VIEW_3D":
+                area.tag_redraw()
+        if not state.done:
+            return {"PASS_THROUGH"}
+        self._cleanup(context)
+        if state.cancelled:
+            self.report({"WARNING"}, "Construction cancelled; nothing was changed")
+            return {"CANCELLED"}
+        if state.error:
+            self.report({"ERROR"}, state.error)
+            return {"CANCELLED"}
+        obj = finish(context, self._prep, state.result)
+        self.report({"INFO"}, _summary(obj, state.result))
+        return {"FINISHED"}
+
+    def _cleanup(self, context):
+        context.window_manager.event_timer_remove(self._timer)
+        context.workspace.status_text_set(None)
+        s = context.scene.micromesh
+        s.running = False
+        s.progress = 0.0 if not (self._job and self._job.state.result) else 1.0
+
+    def cancel(self, context):  # Blender calls this when the operator is aborted (file closed)
+        if self._job is not None:
+            self._job.cancel()
+        self._cleanup(context)
+
+
+class MICROMESH_OT_cancel_construct(bpy.types.Operator):
+    """Stop the running construction (the scene stays as it was)"""
+    bl_idname = "micromesh.cancel_construct"
+    bl_label = "Cancel"
+
+    @classmethod
+    def poll(cls, context):
+        return job.active_job() is not None
+
+    def execute(self, context):
+        j = job.active_job()
+        if j is not None:
+            j.cancel()
+        return {"FINISHED"}
+
+
+CLASSES = (MICROMESH_OT_construct, MICROMESH_OT_cancel_construct)

@@ -1,0 +1,67 @@
+"""Python dependencies inside a real Blender: where they live and how they get there.
+
+Blender bundles numpy but not torch, scipy, numba or Embree. The extension does not bundle
+them as wheels (torch alone is hundreds of MB per platform); instead the preferences offer
+"Install Dependencies", which runs Blender's own Python with pip into the extension's user
+folder (``<extension user folder>/site-packages``, kept across extension upgrades), and
+:func:`ensure_on_path` adds that folder to ``sys.path`` at register time. With the ``bpy``
+wheel (tests, batch.py) the virtual environment already has them.
+"""
+from __future__ import annotations
+
+import importlib.util
+import os
+import subprocess
+import sys
+
+PACKAGE = __package__.rsplit(".", 1)[0]
+
+# What the core imports, with the pins of requirements.txt (CPU torch from PyTorch's index).
+REQUIREMENTS = {
+    "scipy": "scipy==1.17.1",
+    "torch": "torch==2.13.0",
+    "numba": "numba==0.68.1",
+    "embreex": "embreex==4.4.0.post1",
+    "xatlas": "xatlas==0.0.11",
+}
+TORCH_CPU_INDEX = "https://download.pytorch.org/whl/cpu"
+
+
+def site_dir() -> str:
+    """The folder dependencies are installed into."""
+    import bpy
+
+    try:
+        return bpy.utils.extension_path_user(PACKAGE, path="site-packages", create=True)
+    except (ValueError, RuntimeError):  # not loaded as an extension (scripts, tests)
+        return os.path.join(os.path.dirname(os.path.dirname(__file__)), ".deps")
+
+
+def ensure_on_path() -> None:
+    """Put the dependency folder on ``sys.path`` (after Blender's own paths)."""
+    path = site_dir()
+    if os.path.isdir(path) and path not in sys.path:
+        sys.path.append(path)
+
+
+def missing_modules() -> list[str]:
+    return [name for name in REQUIREMENTS if importlib.util.find_spec(name) is None]
+
+
+def pip_command(target: str, modules: list[str] | None = None, cuda: bool = False) -> list[str]:
+    """The pip command that installs the missing (or given) modules into ``target``."""
+    mods = modules if modules is not None else missing_modules()
+    cmd = [sys.executable, "-m", "pip", "install", "--disable-pip-version-check",
+           "--target", target, "numpy<2"] + [REQUIREMENTS[m] for m in mods]
+    if "torch" in mods and not cuda:
+        cmd += ["--extra-index-url", TORCH_CPU_INDEX]
+    return cmd
+
+
+def install(modules: list[str] | None = None, cuda: bool = False) -> subprocess.CompletedProcess:
+    """Install into :func:`site_dir` with Blender's Python (ensurepip first); blocking."""
+    subprocess.run([sys.executable, "-m", "ensurepip", "--upgrade"], capture_output=True)
+    r = subprocess.run(pip_command(site_dir(), modules, cuda), capture_output=True, text=True)
+    ensure_on_path()
+    importlib.invalidate_caches()
+    return r

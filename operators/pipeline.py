@@ -1,0 +1,110 @@
+"""One construction, bpy-free: world-space meshes and cameras in, a world-space result out.
+
+Runs in the worker thread (and synchronously in background mode and in ``batch.py``). Inside,
+everything happens in the unit-sphere frame of the reference (``docs/architecture.md``); the
+result is mapped back (base positions inverted, directions scaled by 1/scale, displacements
+unchanged, so the displaced surface lands back in world space).
+
+Two methods: the optimiser (``core.construct.construct``) and the staged baseline
+(uniform or given levels, projection baking, tight bounds), which is also what
+"keep face levels" runs: the artist's levels with displacements refined by projection.
+"""
+from __future__ import annotations
+
+import importlib.util
+import time
+from typing import Callable
+
+import numpy as np
+
+from ..core.cameras import Cameras
+from ..core.mesh import TriMesh, unit_sphere_normalization
+from ..core.micromesh import MicroMesh
+from ..core.settings import ConstructSettings, to_dict
+from .writeback import Outcome
+
+
+class PipelineCancelled(Exception):
+    """The user stopped the construction; nothing was produced."""
+
+
+def has_optimizer() -> bool:
+    """True when the optimiser's entry point (``core.construct``) is available."""
+    return importlib.util.find_spec(__package__.rsplit(".", 1)[0] + ".core.construct") is not None
+
+
+def _similarity(norm) -> np.ndarray:
+    m = np.eye(4) * norm.scale
+    m[3, 3] = 1.0
+    m[:3, 3] = -norm.center * norm.scale
+    return m
+
+
+def run(reference: TriMesh, base: TriMesh, cameras: Cameras | None, settings: ConstructSettings,
+        progress: Callable = lambda p: None, should_stop: Callable[[], bool] = lambda: False,
+        levels: np.ndarray | None = None, level: int | None = None,
+        method: str = "auto") -> Outcome:
+    """Construct a micro-mesh of ``reference`` on ``base`` (both world space).
+
+    ``method``: "optimize" (core.construct), "projection" (the staged baseline at ``levels`` or
+    the uniform ``level``, default ``settings.max_level``) or "auto" (optimize when available
+    and no levels are kept). Raises :class:`PipelineCancelled` (or the core's
+    ``ConstructCancelled``) when ``should_stop()`` turns true.
+    """
+    t0 = time.perf_counter()
+    norm = unit_sphere_normalization(reference.vertices)
+    ref_u = TriMesh(norm.apply(reference.vertices), reference.faces)
+    base_u = TriMesh(norm.apply(base.vertices), base.faces)
+    cams_u = cameras.transformed(_similarity(norm)) if cameras is not None else None
+    if method == "auto":
+        method = "optimize" if (has_optimizer() and levels is None) else "projection"
+    if method == "optimize":
+        from ..core.construct import construct
+
+        res = construct(ref_u, base_u, cams_u, settings, progress=progress, should_stop=should_stop)
+        mm_u, bounds = res.micromesh, res.bounds
+        metrics = dict(getattr(res, "metrics", {}) or {})
+        history = getattr(res, "history", {}) or {}
+        if not isinstance(history, dict):
+            history = {"history": history}
+    elif method == "projection":
+        mm_u, bounds, metrics = _staged(ref_u, base_u, settings, progress, should_stop, levels, level)
+        history = {}
+    else:
+        raise ValueError(f"method must be auto, optimize or projection, not {method!r}")
+    if should_stop():
+        raise PipelineCancelled("construction cancelled")
+    from ..core.bounds import micromesh_shell_volume, tight_bounds
+
+    if bounds is None:
+        bounds = tight_bounds(mm_u)
+    metrics.setdefault("shell_volume", micromesh_shell_volume(mm_u, bounds))
+    metrics.update(base_faces=int(mm_u.base.n_faces), micro_vertices=int(mm_u.n_vertices),
+                   micro_triangles=int(mm_u.topology.n_triangles),
+                   reference_faces=int(reference.n_faces), time_s=time.perf_counter() - t0)
+    mm_w = MicroMesh(TriMesh(norm.invert(mm_u.base.vertices), mm_u.base.faces),
+                     mm_u.directions / norm.scale, mm_u.levels, mm_u.displacements, mm_u.topology)
+    return Outcome(mm_w, bounds, metrics, to_dict(settings), history, method)
+
+
+def _staged(ref_u, base_u, settings, progress, should_stop, levels, level):
+    """The staged baseline: flat micro-mesh at the levels, projection-baked displacements."""
+    from ..core.bake import bake_displacements
+
+    def check():
+        if should_stop():
+            raise PipelineCancelled("construction cancelled")
+
+    lv = levels if levels is not None else (settings.max_level if level is None else level)
+    progress({"phase": "tessellate", "iteration": 0, "total": 2, "fraction": 0.05})
+    check()
+    mm = MicroMesh.flat(base_u, lv)
+    origins = mm.micro_vertex_base_positions()
+    dirs = mm.micro_vertex_directions()
+    check()
+    progress({"phase": "bake", "iteration": 1, "total": 2, "fraction": 0.3})
+    baked = bake_displacements(origins, dirs, ref_u)
+    check()
+    progress({"phase": "bounds", "iteration": 2, "total": 2, "fraction": 0.95})
+    metrics = {"bake_fallback": int(baked.n_fallback)}
+    return mm.with_displacements(np.asarray(baked.displacement, dtype=np.float64)), None, metrics

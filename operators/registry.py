@@ -1,0 +1,32 @@
+"""Register every class of the operators package, the scene properties and the handlers."""
+from __future__ import annotations
+
+import bpy
+from bpy.app.handlers import persistent
+
+from . import base_ops, construct_op, deps, job, misc_ops, props
+
+CLASSES = (*base_ops.CLASSES, *construct_op.CLASSES, *misc_ops.CLASSES)
+
+
+@persistent
+def _stop_on_load(*_args):
+    """Closing or reloading the file stops a running construction."""
+    job.stop_active()
+
+
+def register():
+    deps.ensure_on_path()
+    props.register()
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+    bpy.app.handlers.load_pre.append(_stop_on_load)
+
+
+def unregister():
+    job.stop_active()
+    if _stop_on_load in bpy.app.handlers.load_pre:
+        bpy.app.handlers.load_pre.remove(_stop_on_load)
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)
+    props.unregister()

@@ -1,0 +1,261 @@
+"""Write a construction result into the scene and read it back from a saved ``.blend``.
+
+- the result object ``<source>_micromesh``: the displaced tessellation as a real mesh with
+  per-face ``micromesh_base_face`` / ``micromesh_level``, per-vertex ``micromesh_displacement``
+  / ``micromesh_direction``, level colours (``micromesh_level_color``, the active colour) and a
+  Geometry Nodes modifier that scales the displacement live (``Strength``);
+- the base object: optimised positions, per-face ``micromesh_level`` and
+  ``micromesh_edge_flags``, per-vertex ``micromesh_direction``;
+- the complete micro-mesh (base, directions, levels, displacements, bounds) as compressed
+  ``.npz`` bytes in the result object's ``micromesh_data`` property, settings / metrics /
+  history as JSON properties, so it survives saving and can be exported without re-running.
+"""
+from __future__ import annotations
+
+import io
+import json
+from dataclasses import dataclass, field
+
+import bpy
+import numpy as np
+
+from ..core.bounds import DirectionBounds
+from ..core.mesh import TriMesh
+from ..core.micromesh import MicroMesh
+from . import bl_mesh
+
+PREVIEW_GROUP = "MicroMesh Displacement Preview"
+PREVIEW_MODIFIER = "MicroMesh Preview"
+DATA_KEY = "micromesh_data"
+# One colour per level 0..5 (blue -> red), linear RGBA.
+LEVEL_COLORS = np.array([[0.05, 0.10, 0.60, 1], [0.05, 0.45, 0.80, 1], [0.10, 0.70, 0.30, 1],
+                         [0.85, 0.80, 0.10, 1], [0.90, 0.40, 0.05, 1], [0.80, 0.05, 0.05, 1]],
+                        dtype=np.float32)
+
+
+@dataclass
+class Outcome:
+    """A finished construction in world space (what the worker hands to the main thread)."""
+
+    micromesh: MicroMesh
+    bounds: DirectionBounds | None = None   # per base vertex (bias, scale)
+    metrics: dict = field(default_factory=dict)
+    settings: dict = field(default_factory=dict)
+    history: dict = field(default_factory=dict)
+    method: str = "projection"
+
+
+# ---------------------------------------------------------------- attributes
+def _attr(mesh, name: str, kind: str, domain: str, values: np.ndarray, key: str = "value"):
+    if name in mesh.attributes:
+        mesh.attributes.remove(mesh.attributes[name])
+    a = mesh.attributes.new(name, kind, domain)
+    a.data.foreach_set(key, np.ascontiguousarray(values).reshape(-1))
+    return a
+
+
+def read_attr(mesh, name: str, key: str = "value", dtype=np.float64, width: int = 1) -> np.ndarray:
+    """An attribute of ``mesh`` as an array ((n,) or (n, width))."""
+    a = mesh.attributes[name]
+    out = np.empty(len(a.data) * width, dtype=np.int32 if dtype in (np.int32, np.int64, int) else np.float32)
+    a.data.foreach_get(key, out)
+    out = out.astype(dtype)
+    return out.reshape(-1, width) if width > 1 else out
+
+
+def level_colors(levels: np.ndarray) -> np.ndarray:
+    return LEVEL_COLORS[np.clip(np.asarray(levels, dtype=np.int64), 0, 5)]
+
+
+# ---------------------------------------------------------------- persistence
+def pack(out: Outcome) -> bytes:
+    mm = out.micromesh
+    arrays = dict(base_vertices=mm.base.vertices, base_faces=mm.base.faces,
+                  directions=mm.directions, levels=mm.levels, displacements=mm.displacements,
+                  edge_flags=mm.topology.flags)
+    if out.bounds is not None:
+        arrays["bounds_bias"], arrays["bounds_scale"] = out.bounds.bias, out.bounds.scale
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    return buf.getvalue()
+
+
+def unpack(data: bytes) -> dict:
+    with np.load(io.BytesIO(bytes(data))) as z:
+        return {k: z[k] for k in z.files}
+
+
+def load_outcome(obj: bpy.types.Object) -> Outcome:
+    """The complete micro-mesh stored on a result object (after reopening a ``.blend``)."""
+    if DATA_KEY not in obj:
+        raise ValueError(f"object '{obj.name}' holds no micro-mesh (run Construct first)")
+    d = unpack(obj[DATA_KEY])
+    mm = MicroMesh(TriMesh(d["base_vertices"], d["base_faces"]), d["directions"], d["levels"],
+                   d["displacements"])
+    bounds = DirectionBounds(d["bounds_bias"], d["bounds_scale"]) if "bounds_bias" in d else None
+    loads = lambda k: json.loads(obj.get(k, "{}"))  # noqa: E731
+    return Outcome(mm, bounds, loads("micromesh_metrics"), loads("micromesh_settings"),
+                   loads("micromesh_history"), obj.get("micromesh_method", ""))
+
+
+# ---------------------------------------------------------------- write-back
+def write_result(context, source: bpy.types.Object, base_obj: bpy.types.Object | None,
+                 out: Outcome, name: str | None = None) -> bpy.types.Object:
+    """Create (or replace) ``<source>_micromesh`` and update the base object; returns the result."""
+    mm = out.micromesh
+    tess = mm.tessellate()
+    name = name or f"{source.name}_micromesh"
+    mesh = bl_mesh.arrays_to_mesh(name, tess.vertices, tess.triangles)
+    levels = mm.levels[tess.triangle_face]
+    _attr(mesh, "micromesh_base_face", "INT", "FACE", tess.triangle_face.astype(np.int32))
+    _attr(mesh, "micromesh_level", "INT", "FACE", levels.astype(np.int32))
+    _attr(mesh, "micromesh_displacement", "FLOAT", "POINT", mm.displacements.astype(np.float32))
+    _attr(mesh, "micromesh_direction", "FLOAT_VECTOR", "POINT",
+          mm.micro_vertex_directions().astype(np.float32), key="vector")
+    corner_colors = np.repeat(level_colors(levels), 3, axis=0)
+    col = _attr(mesh, "micromesh_level_color", "FLOAT_COLOR", "CORNER", corner_colors, key="color")
+    mesh.color_attributes.active_color = col
+    mesh.color_attributes.render_color_index = mesh.color_attributes.active_color_index
+
+    old = bpy.data.objects.get(name)
+    if old is not None and old.get(DATA_KEY) is not None:
+        old_mesh = old.data
+        old.data = mesh
+        if old_mesh.users == 0:
+            bpy.data.meshes.remove(old_mesh)
+        obj = old
+    else:
+        obj = bpy.data.objects.new(name, mesh)
+        coll = source.users_collection[0] if source.users_collection else context.scene.collection
+        coll.objects.link(obj)
+    obj.micromesh_source = source
+    obj.micromesh_base = base_obj
+    obj[DATA_KEY] = pack(out)
+    obj["micromesh_metrics"] = json.dumps(_jsonable(out.metrics))
+    obj["micromesh_settings"] = json.dumps(_jsonable(out.settings))
+    obj["micromesh_history"] = json.dumps(_jsonable(out.history))
+    obj["micromesh_method"] = out.method
+    add_preview_modifier(obj)
+    if base_obj is not None:
+        write_base(base_obj, mm)
+    return obj
+
+
+def write_base(base_obj: bpy.types.Object, mm: MicroMesh) -> None:
+    """Optimised positions and the per-face / per-vertex micro-mesh attributes on the base."""
+    inv = np.linalg.inv(np.array(base_obj.matrix_world, dtype=np.float64))
+    local = mm.base.vertices @ inv[:3, :3].T + inv[:3, 3]
+    mesh = base_obj.data
+    same = (len(mesh.vertices) == mm.base.n_vertices and len(mesh.polygons) == mm.base.n_faces
+            and all(len(p.vertices) == 3 for p in mesh.polygons))
+    if same:
+        mesh.calc_loop_triangles()
+        f = np.empty(3 * len(mesh.loop_triangles), np.int32)
+        mesh.loop_triangles.foreach_get("vertices", f)
+        same = np.array_equal(f.reshape(-1, 3), mm.base.faces)
+    if same:
+        mesh.vertices.foreach_set("co", local.astype(np.float32).reshape(-1))
+    else:  # the artist's base had n-gons: replace it with the triangulated base
+        new = bl_mesh.arrays_to_mesh(mesh.name, local, mm.base.faces)
+        base_obj.data = new
+        if mesh.users == 0:
+            bpy.data.meshes.remove(mesh)
+        mesh = new
+    _attr(mesh, "micromesh_level", "INT", "FACE", mm.levels.astype(np.int32))
+    _attr(mesh, "micromesh_edge_flags", "INT", "FACE", mm.topology.flags.astype(np.int32))
+    dir_local = mm.directions @ inv[:3, :3].T
+    _attr(mesh, "micromesh_direction", "FLOAT_VECTOR", "POINT", dir_local.astype(np.float32),
+          key="vector")
+    col = _attr(mesh, "micromesh_level_color", "FLOAT_COLOR", "CORNER",
+                np.repeat(level_colors(mm.levels), 3, axis=0), key="color")
+    mesh.color_attributes.active_color = col
+    mesh.update()
+
+
+def base_levels(base_obj: bpy.types.Object, tri_polygon: np.ndarray) -> np.ndarray | None:
+    """Per-triangle levels from the base's ``micromesh_level`` face attribute (None if absent)."""
+    mesh = base_obj.data
+    a = mesh.attributes.get("micromesh_level")
+    if a is None or a.domain != "FACE":
+        return None
+    lv = read_attr(mesh, "micromesh_level", dtype=np.int64)
+    return np.clip(lv[tri_polygon], 0, 5)
+
+
+# ---------------------------------------------------------------- preview
+def preview_group() -> bpy.types.NodeTree:
+    """Geometry Nodes group: position += (Strength − 1) · direction · displacement."""
+    ng = bpy.data.node_groups.get(PREVIEW_GROUP)
+    if ng is not None:
+        return ng
+    ng = bpy.data.node_groups.new(PREVIEW_GROUP, "GeometryNodeTree")
+    ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    s = ng.interface.new_socket("Strength", in_out="INPUT", socket_type="NodeSocketFloat")
+    s.default_value, s.min_value, s.max_value = 1.0, -10.0, 10.0
+    ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    n = ng.nodes
+    gin, gout = n.new("NodeGroupInput"), n.new("NodeGroupOutput")
+    direction = n.new("GeometryNodeInputNamedAttribute")
+    direction.data_type = "FLOAT_VECTOR"
+    direction.inputs["Name"].default_value = "micromesh_direction"
+    disp = n.new("GeometryNodeInputNamedAttribute")
+    disp.data_type = "FLOAT"
+    disp.inputs["Name"].default_value = "micromesh_displacement"
+    minus = n.new("ShaderNodeMath")
+    minus.operation = "SUBTRACT"
+    minus.inputs[1].default_value = 1.0
+    mul = n.new("ShaderNodeMath")
+    mul.operation = "MULTIPLY"
+    scale = n.new("ShaderNodeVectorMath")
+    scale.operation = "SCALE"
+    setpos = n.new("GeometryNodeSetPosition")
+    link = ng.links.new
+    link(gin.outputs["Strength"], minus.inputs[0])
+    link(minus.outputs[0], mul.inputs[0])
+    link(disp.outputs["Attribute"], mul.inputs[1])
+    link(direction.outputs["Attribute"], scale.inputs[0])
+    link(mul.outputs[0], scale.inputs["Scale"])
+    link(gin.outputs["Geometry"], setpos.inputs["Geometry"])
+    link(scale.outputs[0], setpos.inputs["Offset"])
+    link(setpos.outputs["Geometry"], gout.inputs["Geometry"])
+    return ng
+
+
+def _strength_key(ng) -> str:
+    for item in ng.interface.items_tree:
+        if getattr(item, "in_out", "") == "INPUT" and item.name == "Strength":
+            return item.identifier
+    raise KeyError("Strength")
+
+
+def add_preview_modifier(obj: bpy.types.Object, strength: float = 1.0) -> bpy.types.Modifier:
+    mod = obj.modifiers.get(PREVIEW_MODIFIER) or obj.modifiers.new(PREVIEW_MODIFIER, "NODES")
+    mod.node_group = preview_group()
+    mod[_strength_key(mod.node_group)] = float(strength)
+    return mod
+
+
+def set_preview_strength(scene, strength: float) -> None:
+    """Set the preview strength on every result object of the scene."""
+    for obj in scene.objects:
+        mod = obj.modifiers.get(PREVIEW_MODIFIER)
+        if mod is not None and mod.node_group is not None:
+            mod[_strength_key(mod.node_group)] = float(strength)
+            obj.update_tag()
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (np.floating, float)):
+        v = float(x)
+        return v if np.isfinite(v) else None
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (str, int, bool)) or x is None:
+        return x
+    return str(x)

@@ -1,0 +1,1 @@
+"""The Micro-Mesh N-panel."""

@@ -1,0 +1,172 @@
+"""The "Micro-Mesh" tab of the 3D Viewport's sidebar, sections in workflow order:
+Base Mesh, Cameras, Construct (presets, progress, cancel), Result (metrics, preview), Export."""
+from __future__ import annotations
+
+import json
+
+import bpy
+
+from ..operators import base_ops, job, writeback
+
+
+def _result_object(context):
+    obj = context.active_object
+    if obj is not None and obj.get(writeback.DATA_KEY) is not None:
+        return obj
+    src = base_ops.source_object(context)
+    if src is not None:
+        cand = bpy.data.objects.get(f"{src.name}_micromesh")
+        if cand is not None and cand.get(writeback.DATA_KEY) is not None:
+            return cand
+    return None
+
+
+class _Panel:
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Micro-Mesh"
+
+
+class MICROMESH_PT_main(_Panel, bpy.types.Panel):
+    bl_label = "Micro-Mesh"
+    bl_idname = "MICROMESH_PT_main"
+
+    def draw(self, context):
+        s = context.scene.micromesh
+        col = self.layout.column(align=True)
+        col.prop(s, "source")
+        col.prop(s, "base")
+        from ..operators import deps
+
+        missing = deps.missing_modules()
+        if missing:
+            box = self.layout.box()
+            box.label(text="Missing: " + ", ".join(missing), icon="ERROR")
+            box.operator("micromesh.install_dependencies", icon="IMPORT")
+
+
+class MICROMESH_PT_base(_Panel, bpy.types.Panel):
+    bl_label = "Base Mesh"
+    bl_idname = "MICROMESH_PT_base"
+    bl_parent_id = "MICROMESH_PT_main"
+
+    def draw(self, context):
+        s = context.scene.micromesh
+        layout = self.layout
+        layout.prop(s, "decimate_mode", expand=True)
+        layout.prop(s, "target_faces" if s.decimate_mode == "TARGET" else "ratio")
+        row = layout.row()
+        row.prop(s, "symmetry", expand=True)
+        src = s.source or context.active_object
+        if src is not None and src.type == "MESH":
+            layout.prop_search(s, "vertex_group", src, "vertex_groups")
+            if s.vertex_group:
+                row = layout.row(align=True)
+                row.prop(s, "vertex_group_factor")
+                row.prop(s, "invert_vertex_group", toggle=True)
+        layout.operator("micromesh.make_base", icon="MOD_DECIM")
+        layout.operator("micromesh.check_base", icon="VIEWZOOM")
+        if s.check_report:
+            box = layout.box()
+            for line in s.check_report.split("; "):
+                box.label(text=line)
+        row = layout.row(align=True)
+        row.operator("micromesh.set_face_level", icon="FACESEL")
+        row.prop(s, "keep_levels", toggle=True)
+
+
+class MICROMESH_PT_cameras(_Panel, bpy.types.Panel):
+    bl_label = "Cameras"
+    bl_idname = "MICROMESH_PT_cameras"
+    bl_parent_id = "MICROMESH_PT_main"
+
+    def draw(self, context):
+        s = context.scene.micromesh
+        col = self.layout.column(align=True)
+        col.prop(s, "camera_count")
+        col.prop(s, "camera_radius")
+        col.prop(s, "camera_fov")
+        self.layout.prop(s, "camera_collection")
+        self.layout.prop(s, "use_scene_cameras")
+        self.layout.operator("micromesh.place_cameras", icon="OUTLINER_OB_CAMERA")
+
+
+class MICROMESH_PT_construct(_Panel, bpy.types.Panel):
+    bl_label = "Construct"
+    bl_idname = "MICROMESH_PT_construct"
+    bl_parent_id = "MICROMESH_PT_main"
+
+    def draw(self, context):
+        s = context.scene.micromesh
+        layout = self.layout
+        row = layout.row(align=True)
+        for name in ("fast", "default", "quality", "paper"):
+            op = row.operator("micromesh.apply_preset", text=name.title(),
+                              depress=(s.preset == name))
+            op.preset = name
+        layout.prop(s, "level")
+        layout.prop(s, "overrides")
+        if job.active_job() is not None:
+            layout.progress(factor=s.progress, type="BAR",
+                            text=f"{s.phase} {s.iteration}  PSNR {s.psnr:.2f}  {s.eta_s:.0f} s left")
+            layout.operator("micromesh.cancel_construct", icon="CANCEL")
+        else:
+            layout.operator("micromesh.construct", icon="PLAY")
+
+
+class MICROMESH_PT_result(_Panel, bpy.types.Panel):
+    bl_label = "Result"
+    bl_idname = "MICROMESH_PT_result"
+    bl_parent_id = "MICROMESH_PT_main"
+
+    def draw(self, context):
+        s = context.scene.micromesh
+        obj = _result_object(context)
+        if obj is None:
+            self.layout.label(text="No result yet")
+            return
+        m = json.loads(obj.get("micromesh_metrics", "{}"))
+        col = self.layout.column(align=True)
+        col.label(text=obj.name, icon="MESH_DATA")
+        for key, label, fmt in (("psnr", "PSNR", "{:.2f} dB"), ("shell_volume", "Shell volume", "{:.4g}"),
+                                ("geom_err", "Geometric error", "{:.3g}"), ("iso_base", "Isotropy", "{:.3f}"),
+                                ("bytes", "Bytes", "{:,}"), ("micro_triangles", "Micro-triangles", "{:,}"),
+                                ("time_s", "Time", "{:.1f} s")):
+            v = m.get(key)
+            if isinstance(v, (int, float)):
+                col.label(text=f"{label}: " + fmt.format(v))
+        self.layout.prop(s, "preview_strength", slider=True)
+        self.layout.operator("micromesh.open_report", icon="IMAGE_DATA")
+
+
+class MICROMESH_PT_export(_Panel, bpy.types.Panel):
+    bl_label = "Export"
+    bl_idname = "MICROMESH_PT_export"
+    bl_parent_id = "MICROMESH_PT_main"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        # Operators of the interop issue appear here when they are registered.
+        shown = False
+        for name in dir(bpy.types):
+            if name.startswith("MICROMESH_OT_export"):
+                cls = getattr(bpy.types, name)
+                layout.operator(cls.bl_idname, icon="EXPORT")
+                shown = True
+        if not shown:
+            layout.label(text="Save the .blend: the micro-mesh is stored in it")
+
+
+CLASSES = (MICROMESH_PT_main, MICROMESH_PT_base, MICROMESH_PT_cameras, MICROMESH_PT_construct,
+           MICROMESH_PT_result, MICROMESH_PT_export)
+
+
+def register():
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)
