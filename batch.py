@@ -166,7 +166,8 @@ def process(bpy, pkg, source, args, settings, out_dir: Path) -> dict:
         phase, now = str(get("phase", "")), time.perf_counter()
         if phase != last[1] or now - last[0] > 2.0:
             last[:] = [now, phase]
-            it, tot, ps = get("iteration", 0), get("total", 0), get("psnr", None)
+            it, ps = get("iteration", 0), get("psnr", None)
+            tot = get("total_iterations", None) or get("total", 0)
             extra = f" PSNR {ps:.2f}" if isinstance(ps, (int, float)) and ps == ps else ""
             print(f"[{name}] {phase} {it}/{tot}{extra} ({now - t0:.1f} s)", flush=True)
 

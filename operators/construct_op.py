@@ -34,7 +34,7 @@ def scene_settings(scene):
 
     s = scene.micromesh
     st = preset(s.preset)
-    over = [t for t in s.overrides.replace(",", " ").split() if t]
+    over = s.overrides.split()
     st = apply_overrides(st, over + [f"device={preferences.device()}"])
     return st
 

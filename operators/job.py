@@ -77,13 +77,10 @@ class Job:
 
     # ------------------------------------------------------------ worker side
     def _progress(self, report: Any) -> None:
-        if isinstance(report, dict):
-            items = report
-        else:
-            items = {k: getattr(report, k) for k in
-                     ("phase", "iteration", "total", "psnr", "loss", "eta_s", "fraction")
-                     if hasattr(report, k)}
-        self._queue.put(("progress", dict(items)))
+        if not isinstance(report, dict):
+            report = {k: getattr(report, k) for k in ("phase", "iteration", "total",
+                      "total_iterations", "psnr", "loss", "eta_s", "fraction") if hasattr(report, k)}
+        self._queue.put(("progress", dict(report)))
 
     def _run(self) -> None:
         try:
@@ -131,9 +128,11 @@ class Job:
     @staticmethod
     def _progress_into(state: JobState, report) -> None:
         """Apply one progress report (mapping or object) to ``state``."""
-        items = report if isinstance(report, dict) else {
-            k: getattr(report, k) for k in ("phase", "iteration", "total", "psnr", "loss", "eta_s",
-                                            "fraction") if hasattr(report, k)}
+        items = dict(report) if isinstance(report, dict) else {
+            k: getattr(report, k) for k in ("phase", "iteration", "total", "total_iterations", "psnr",
+                                            "loss", "eta_s", "fraction") if hasattr(report, k)}
+        if "total_iterations" in items:  # core.construct.Progress
+            items["total"] = items.pop("total_iterations")
         for k, v in items.items():
             if hasattr(state, k) and v is not None:
                 setattr(state, k, v)

@@ -2,8 +2,8 @@
 
 Runs in the worker thread (and synchronously in background mode and in ``batch.py``). Inside,
 everything happens in the unit-sphere frame of the reference (``docs/architecture.md``); the
-result is mapped back (base positions inverted, directions scaled by 1/scale, displacements
-unchanged, so the displaced surface lands back in world space).
+result is mapped back like the core does (base positions inverted, directions kept,
+displacements and bounds scaled by 1/scale).
 
 Two methods: the optimiser (``core.construct.construct``) and the staged baseline
 (uniform or given levels, projection baking, tight bounds), which is also what
@@ -33,13 +33,6 @@ def has_optimizer() -> bool:
     return importlib.util.find_spec(__package__.rsplit(".", 1)[0] + ".core.construct") is not None
 
 
-def _similarity(norm) -> np.ndarray:
-    m = np.eye(4) * norm.scale
-    m[3, 3] = 1.0
-    m[:3, 3] = -norm.center * norm.scale
-    return m
-
-
 def run(reference: TriMesh, base: TriMesh, cameras: Cameras | None, settings: ConstructSettings,
         progress: Callable = lambda p: None, should_stop: Callable[[], bool] = lambda: False,
         levels: np.ndarray | None = None, level: int | None = None,
@@ -49,26 +42,31 @@ def run(reference: TriMesh, base: TriMesh, cameras: Cameras | None, settings: Co
     ``method``: "optimize" (core.construct), "projection" (the staged baseline at ``levels`` or
     the uniform ``level``, default ``settings.max_level``) or "auto" (optimize when available
     and no levels are kept). Raises :class:`PipelineCancelled` (or the core's
-    ``ConstructCancelled``) when ``should_stop()`` turns true.
+    ``ConstructCancelled``) when ``should_stop()`` turns true. The result follows the core's
+    convention: directions as computed in the unit frame, displacements and bounds in world
+    units; ``metrics["shell_volume"]`` is measured in the unit-sphere frame (the paper's).
     """
     t0 = time.perf_counter()
-    norm = unit_sphere_normalization(reference.vertices)
-    ref_u = TriMesh(norm.apply(reference.vertices), reference.faces)
-    base_u = TriMesh(norm.apply(base.vertices), base.faces)
-    cams_u = cameras.transformed(_similarity(norm)) if cameras is not None else None
     if method == "auto":
         method = "optimize" if (has_optimizer() and levels is None) else "projection"
     if method == "optimize":
         from ..core.construct import construct
 
-        res = construct(ref_u, base_u, cams_u, settings, progress=progress, should_stop=should_stop)
-        mm_u, bounds = res.micromesh, res.bounds
-        metrics = dict(getattr(res, "metrics", {}) or {})
-        history = getattr(res, "history", {}) or {}
-        if not isinstance(history, dict):
-            history = {"history": history}
+        res = construct(reference, base, cameras, settings, progress=progress,
+                        should_stop=should_stop)
+        mm_w, bounds = res.micromesh, res.bounds
+        mm_u = res.micromesh_unit
+        metrics = dict(res.metrics or {})
+        history = dict(res.history or {})
     elif method == "projection":
-        mm_u, bounds, metrics = _staged(ref_u, base_u, settings, progress, should_stop, levels, level)
+        norm = unit_sphere_normalization(reference.vertices)
+        ref_u = TriMesh(norm.apply(reference.vertices), reference.faces)
+        base_u = TriMesh(norm.apply(base.vertices), base.faces)
+        mm_u, metrics = _staged(ref_u, base_u, settings, progress, should_stop, levels, level)
+        inv = 1.0 / norm.scale
+        mm_w = MicroMesh(TriMesh(norm.invert(mm_u.base.vertices), mm_u.base.faces),
+                         mm_u.directions, mm_u.levels, mm_u.displacements * inv, mm_u.topology)
+        bounds = None
         history = {}
     else:
         raise ValueError(f"method must be auto, optimize or projection, not {method!r}")
@@ -77,18 +75,18 @@ def run(reference: TriMesh, base: TriMesh, cameras: Cameras | None, settings: Co
     from ..core.bounds import micromesh_shell_volume, tight_bounds
 
     if bounds is None:
-        bounds = tight_bounds(mm_u)
-    metrics.setdefault("shell_volume", micromesh_shell_volume(mm_u, bounds))
-    metrics.update(base_faces=int(mm_u.base.n_faces), micro_vertices=int(mm_u.n_vertices),
-                   micro_triangles=int(mm_u.topology.n_triangles),
+        bounds = tight_bounds(mm_w)
+    if "shell_volume" not in metrics and mm_u is not None:
+        metrics["shell_volume"] = micromesh_shell_volume(mm_u)
+    metrics.update(base_faces=int(mm_w.base.n_faces), micro_vertices=int(mm_w.n_vertices),
+                   micro_triangles=int(mm_w.topology.n_triangles),
                    reference_faces=int(reference.n_faces), time_s=time.perf_counter() - t0)
-    mm_w = MicroMesh(TriMesh(norm.invert(mm_u.base.vertices), mm_u.base.faces),
-                     mm_u.directions / norm.scale, mm_u.levels, mm_u.displacements, mm_u.topology)
     return Outcome(mm_w, bounds, metrics, to_dict(settings), history, method)
 
 
 def _staged(ref_u, base_u, settings, progress, should_stop, levels, level):
-    """The staged baseline: flat micro-mesh at the levels, projection-baked displacements."""
+    """The staged baseline: flat micro-mesh at the levels, projection-baked displacements
+    (ray hits within two mean base edge lengths, else the nearest surface point)."""
     from ..core.bake import bake_displacements
 
     def check():
@@ -101,10 +99,12 @@ def _staged(ref_u, base_u, settings, progress, should_stop, levels, level):
     mm = MicroMesh.flat(base_u, lv)
     origins = mm.micro_vertex_base_positions()
     dirs = mm.micro_vertex_directions()
+    e = base_u.edges
+    reach = 2.0 * float(np.linalg.norm(base_u.vertices[e[:, 0]] - base_u.vertices[e[:, 1]], axis=1).mean())
     check()
     progress({"phase": "bake", "iteration": 1, "total": 2, "fraction": 0.3})
-    baked = bake_displacements(origins, dirs, ref_u)
+    baked = bake_displacements(origins, dirs, ref_u, max_distance=reach)
     check()
     progress({"phase": "bounds", "iteration": 2, "total": 2, "fraction": 0.95})
     metrics = {"bake_fallback": int(baked.n_fallback)}
-    return mm.with_displacements(np.asarray(baked.displacement, dtype=np.float64)), None, metrics
+    return mm.with_displacements(np.asarray(baked.displacement, dtype=np.float64)), metrics

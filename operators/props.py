@@ -17,6 +17,12 @@ PRESET_ITEMS = [
 ]
 
 
+def _update_strength(settings, context) -> None:
+    from . import writeback
+
+    writeback.set_preview_strength(context.scene, settings.preview_strength)
+
+
 def _is_mesh(_self, obj) -> bool:
     return obj.type == "MESH"
 
@@ -51,7 +57,7 @@ class MICROMESH_PG_settings(bpy.types.PropertyGroup):
     # ---- construct
     preset: EnumProperty(name="Preset", items=PRESET_ITEMS, default="fast")
     overrides: StringProperty(name="Overrides", default="",
-                              description="Extra settings as key=value, separated by spaces or commas")
+                              description="Extra settings as key=value, separated by spaces (e.g. iterations=200 subdivide_at=20,60)")
     level: IntProperty(name="Level", default=3, min=0, max=5,
                        description="Uniform subdivision level of the projection-baked micro-mesh")
     keep_levels: BoolProperty(name="Keep Face Levels", default=False,
@@ -67,13 +73,7 @@ class MICROMESH_PG_settings(bpy.types.PropertyGroup):
     status: StringProperty(default="")
     # ---- result
     preview_strength: FloatProperty(name="Displacement Strength", default=1.0, min=-1.0, max=3.0,
-                                    update=lambda self, ctx: _update_strength(self, ctx))
-
-
-def _update_strength(settings, context) -> None:
-    from . import writeback
-
-    writeback.set_preview_strength(context.scene, settings.preview_strength)
+                                    update=_update_strength)
 
 
 CLASSES = (MICROMESH_PG_settings,)

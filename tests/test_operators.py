@@ -1,0 +1,272 @@
+"""Each operator end to end on a small procedural mesh in the bpy wheel (background mode)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+import micromesh_path  # noqa: E402
+
+pkg = micromesh_path.ensure_package()
+from micromesh.core.cameras import supplement_up  # noqa: E402
+from micromesh.operators import bl_mesh, cameras_io, construct_op, job, writeback  # noqa: E402
+
+
+@pytest.fixture(scope="module", autouse=True)
+def registered():
+    pkg.register()
+    yield
+    pkg.unregister()
+
+
+@pytest.fixture
+def scene():
+    """An empty scene with a detailed procedural source (displaced, moved, modifiers live)."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=4, radius=1.0, location=(2.0, -1.0, 0.5))
+    src = bpy.context.active_object
+    src.name = "rock"
+    tex = bpy.data.textures.new("noise", "CLOUDS")
+    tex.noise_scale = 0.6
+    mod = src.modifiers.new("disp", "DISPLACE")
+    mod.texture, mod.strength = tex, 0.2
+    s = bpy.context.scene.micromesh
+    s.target_faces, s.level, s.camera_count = 120, 2, 8
+    return bpy.context.scene
+
+
+def _make_base(scene):
+    assert bpy.ops.micromesh.make_base() == {"FINISHED"}
+    return scene.micromesh.source, scene.micromesh.base
+
+
+def test_make_base(scene):
+    src = bpy.context.active_object
+    n_src = len(src.data.vertices)
+    src_world = bl_mesh.mesh_to_arrays(src)
+    src2, base = _make_base(scene)
+    assert src2 == src and base.name == "rock_base" and base.micromesh_source == src
+    assert len(src.data.vertices) == n_src and len(src.modifiers) == 1  # source untouched
+    assert all(len(p.vertices) == 3 for p in base.data.polygons)
+    assert abs(len(base.data.polygons) - 120) <= 12
+    bw = bl_mesh.mesh_to_arrays(base)  # world space, follows the displaced, moved source
+    assert np.allclose(bw.vertices.mean(0), src_world.vertices.mean(0), atol=0.15)
+    assert bw.is_closed_manifold and bw.genus == 0
+    # Ratio mode and symmetry go through the same modifier.
+    s = scene.micromesh
+    s.decimate_mode, s.ratio, s.symmetry = "RATIO", 0.05, "X"
+    assert bpy.ops.micromesh.make_base() == {"FINISHED"}
+    assert s.base == base and abs(len(base.data.polygons) - 0.05 * src_world.n_faces) < 20
+
+
+def test_check_base_reports_and_selects(scene):
+    src, base = _make_base(scene)
+    assert bpy.ops.micromesh.check_base() == {"FINISHED"}
+    assert "0 flipped faces" in scene.micromesh.check_report
+    assert "0 non-manifold edges" in scene.micromesh.check_report
+    bpy.ops.object.mode_set(mode="OBJECT")
+    # Flip one face by hand: it must be reported and selected.
+    m = bl_mesh.mesh_arrays(base.data)[1]
+    m[7] = m[7][::-1]
+    v = bl_mesh.mesh_arrays(base.data)[0]
+    old = base.data
+    base.data = bl_mesh.arrays_to_mesh("flipped", v, m)
+    bpy.data.meshes.remove(old)
+    assert bpy.ops.micromesh.check_base() == {"FINISHED"}
+    assert "1 flipped faces" in scene.micromesh.check_report
+    assert base.mode == "EDIT"
+    bpy.ops.object.mode_set(mode="OBJECT")
+    sel = np.zeros(len(base.data.polygons), bool)
+    base.data.polygons.foreach_get("select", sel)
+    assert sel[7] and sel.sum() == 1
+
+
+def test_place_cameras_replaces_and_follows_the_up_rule(scene):
+    s = scene.micromesh
+    assert bpy.ops.micromesh.place_cameras() == {"FINISHED"}
+    s.camera_count = 5
+    assert bpy.ops.micromesh.place_cameras() == {"FINISHED"}
+    objs = cameras_io.camera_objects(s.camera_collection)
+    assert len(objs) == 5 and len([o for o in bpy.data.objects if o.type == "CAMERA"]) == 5
+    ref = bl_mesh.mesh_to_arrays(s.source)
+    center, radius = cameras_io.bounding_sphere(ref)
+    for o in objs:
+        m = np.array(o.matrix_world)
+        eye, fwd, up = m[:3, 3], -m[:3, 2], m[:3, 1]
+        assert np.linalg.norm(eye - center) == pytest.approx(3.5 * radius, rel=1e-5)
+        assert np.allclose(fwd, (center - eye) / np.linalg.norm(center - eye), atol=1e-5)
+        assert np.allclose(up, supplement_up((eye - center)[None])[0], atol=1e-5)
+    cams = cameras_io.collection_cameras(s.camera_collection, 64)
+    clip = cams.mvp @ np.append(center, 1.0)
+    assert np.allclose(clip[:, :2] / clip[:, 3:4], 0.0, atol=1e-6)  # centre in the middle
+
+
+def _check_consistent(res, base):
+    out = writeback.load_outcome(res)
+    mm = out.micromesh
+    tess = mm.tessellate()
+    me = res.data
+    v, f = bl_mesh.mesh_arrays(me)
+    np.testing.assert_allclose(v, tess.vertices, atol=1e-5 * (1 + np.abs(tess.vertices).max()))
+    np.testing.assert_array_equal(f, tess.triangles)
+    np.testing.assert_array_equal(writeback.read_attr(me, "micromesh_base_face", dtype=np.int64),
+                                  tess.triangle_face)
+    np.testing.assert_array_equal(writeback.read_attr(me, "micromesh_level", dtype=np.int64),
+                                  mm.levels[tess.triangle_face])
+    np.testing.assert_allclose(writeback.read_attr(me, "micromesh_displacement"), mm.displacements,
+                               rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(writeback.read_attr(me, "micromesh_direction", "vector", width=3),
+                               mm.micro_vertex_directions(), atol=1e-6)
+    bv, bf = bl_mesh.mesh_arrays(base.data)
+    np.testing.assert_allclose(bv, mm.base.vertices, atol=1e-5)  # base gets the final positions
+    np.testing.assert_array_equal(bf, mm.base.faces)
+    np.testing.assert_array_equal(writeback.read_attr(base.data, "micromesh_level", dtype=np.int64),
+                                  mm.levels)
+    np.testing.assert_array_equal(writeback.read_attr(base.data, "micromesh_edge_flags", dtype=np.int64),
+                                  mm.topology.flags)
+    np.testing.assert_allclose(writeback.read_attr(base.data, "micromesh_direction", "vector", width=3),
+                               mm.directions, atol=1e-6)
+    return out
+
+
+def test_construct_projection_writes_consistent_attributes(scene):
+    src, base = _make_base(scene)
+    assert bpy.ops.micromesh.construct(method="PROJECTION") == {"FINISHED"}
+    res = bpy.data.objects["rock_micromesh"]
+    assert res.micromesh_source == src and res.micromesh_base == base
+    out = _check_consistent(res, base)
+    assert out.method == "projection" and set(out.micromesh.levels) == {2}
+    m = json.loads(res["micromesh_metrics"])
+    assert m["micro_triangles"] == 16 * len(base.data.polygons) and m["shell_volume"] > 0
+    # Baked surface lies on the source: micro-vertices close to the reference.
+    ref = bl_mesh.mesh_to_arrays(src)
+    from micromesh.core.metrics import distance_to_mesh
+
+    d = distance_to_mesh(out.micromesh.micro_vertex_positions(), ref.vertices, ref.faces)
+    assert np.median(d) < 1e-3 and np.percentile(d, 95) < 0.02
+    assert res.modifiers[writeback.PREVIEW_MODIFIER].node_group.name == writeback.PREVIEW_GROUP
+    assert res.data.color_attributes.active_color.name == "micromesh_level_color"
+
+
+def test_construct_optimizer_tiny_budget(scene):
+    pytest.importorskip("micromesh.core.construct")
+    s = scene.micromesh
+    _make_base(scene)
+    s.camera_count = 4
+    assert bpy.ops.micromesh.place_cameras() == {"FINISHED"}
+    s.overrides = ("iterations=6 subdivide_at=2,4 max_level=2 train_resolution=48 n_views=4 "
+                   "views_per_iter=2 eval_views=2 eval_resolution=48 lod_resolution=48")
+    assert bpy.ops.micromesh.construct(method="OPTIMIZE") == {"FINISHED"}
+    res = bpy.data.objects["rock_micromesh"]
+    out = _check_consistent(res, s.base)
+    assert out.method == "optimize" and out.history
+    assert out.settings["iterations"] == 6
+    assert np.isfinite(json.loads(res["micromesh_metrics"])["psnr"])
+
+
+def test_save_reload_and_preview_strength(scene, tmp_path):
+    _make_base(scene)
+    assert bpy.ops.micromesh.construct(method="PROJECTION") == {"FINISHED"}
+    before = writeback.load_outcome(bpy.data.objects["rock_micromesh"])
+    path = str(tmp_path / "saved.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    assert "rock_micromesh" not in bpy.data.objects
+    bpy.ops.wm.open_mainfile(filepath=path)
+    res = bpy.data.objects["rock_micromesh"]
+    after = writeback.load_outcome(res)
+    for k in ("directions", "levels", "displacements"):
+        np.testing.assert_array_equal(getattr(after.micromesh, k), getattr(before.micromesh, k))
+    np.testing.assert_array_equal(after.micromesh.base.vertices, before.micromesh.base.vertices)
+    np.testing.assert_array_equal(after.bounds.scale, before.bounds.scale)
+    assert after.metrics == json.loads(json.dumps(before.metrics))
+    assert res.micromesh_base.name == "rock_base" and res.micromesh_source.name == "rock"
+    # The Geometry Nodes preview: strength 0 shows the undisplaced micro-mesh.
+    bpy.context.scene.micromesh.preview_strength = 0.0
+    flat = bl_mesh.mesh_to_arrays(res)
+    np.testing.assert_allclose(flat.vertices, after.micromesh.micro_vertex_base_positions(), atol=1e-4)
+    bpy.context.scene.micromesh.preview_strength = 1.0
+    full = bl_mesh.mesh_to_arrays(res)
+    np.testing.assert_allclose(full.vertices, after.micromesh.micro_vertex_positions(), atol=1e-4)
+
+
+def test_undo_restores_the_scene(scene):
+    src, base = _make_base(scene)
+    base_before = bl_mesh.mesh_arrays(base.data)[0].copy()
+    bpy.ops.ed.undo_push(message="before construct")
+    names = set(bpy.data.objects.keys())
+    assert bpy.ops.micromesh.construct(method="PROJECTION") == {"FINISHED"}
+    bpy.ops.ed.undo_push(message="after construct")
+    assert "rock_micromesh" in bpy.data.objects
+    bpy.ops.ed.undo()
+    assert set(bpy.data.objects.keys()) == names
+    base = bpy.data.objects["rock_base"]
+    assert "micromesh_level" not in base.data.attributes
+    np.testing.assert_array_equal(bl_mesh.mesh_arrays(base.data)[0], base_before)
+
+
+def test_cancel_through_should_stop_leaves_no_new_objects(scene):
+    _make_base(scene)
+    names = set(bpy.data.objects.keys())
+    n_meshes = len(bpy.data.meshes)
+    prep = construct_op.prepare(bpy.context, "projection")
+    j = job.Job(prep.work)
+    j.cancel()  # should_stop() is true from the first check
+    j.start()
+    t = 0
+    while not j.poll().done and t < 500:
+        j.join(0.02)
+        t += 1
+    assert j.state.cancelled and j.state.result is None
+    construct_op.sync_state(bpy.context.scene, j.state)
+    assert set(bpy.data.objects.keys()) == names and len(bpy.data.meshes) == n_meshes
+    assert bpy.context.scene.micromesh.phase == j.state.phase
+
+
+def test_modal_timer_tick_updates_the_panel_state(scene):
+    state = job.JobState(phase="optimize", iteration=30, total=120, psnr=33.3, eta_s=12.0)
+    state.fraction = 0.25
+    construct_op.sync_state(bpy.context.scene, state)
+    s = bpy.context.scene.micromesh
+    assert (s.phase, s.iteration, s.progress) == ("optimize", 30, 0.25)
+    assert s.psnr == pytest.approx(33.3) and "30/120" in s.status
+
+
+def test_face_level_override_kept(scene):
+    src, base = _make_base(scene)
+    bpy.context.view_layer.objects.active = base
+    sel = np.zeros(len(base.data.polygons), bool)
+    sel[:10] = True
+    base.data.polygons.foreach_set("select", sel)
+    s = scene.micromesh
+    s.level = 1
+    assert bpy.ops.micromesh.set_face_level(level=3) == {"FINISHED"}
+    assert s.keep_levels
+    assert bpy.ops.micromesh.construct() == {"FINISHED"}
+    mm = writeback.load_outcome(bpy.data.objects["rock_micromesh"]).micromesh
+    assert (mm.levels[:10] == 3).all()
+    assert mm.levels.min() == 1 and set(np.unique(mm.levels)) <= {1, 2, 3}  # balanced ±1
+    stored = writeback.read_attr(base.data, "micromesh_level", dtype=np.int64)
+    np.testing.assert_array_equal(stored, mm.levels)
+
+
+def test_report_image(scene):
+    _make_base(scene)
+    assert bpy.ops.micromesh.construct(method="PROJECTION") == {"FINISHED"}
+    bpy.context.view_layer.objects.active = bpy.data.objects["rock_micromesh"]
+    assert bpy.ops.micromesh.open_report() == {"FINISHED"}
+    img = bpy.data.images["rock_micromesh_report"]
+    import os
+
+    assert os.path.getsize(bpy.path.abspath(img.filepath_raw)) > 1000
+
+
+def test_bad_input_is_reported(scene):
+    s = scene.micromesh
+    s.overrides = "no_such_setting=1"
+    _make_base(scene)
+    with pytest.raises(RuntimeError, match="unknown setting"):
+        bpy.ops.micromesh.construct(method="PROJECTION")
+    assert "rock_micromesh" not in bpy.data.objects
