@@ -114,7 +114,7 @@ def import_source(bpy, path: Path):
             bpy.ops.wm.open_mainfile(filepath=str(path))
             before = set()
     except RuntimeError as e:
-        raise BatchError(f"cannot read {path.name}: {str(e).strip().splitlines()[-1]}") from None
+        raise BatchError(f"cannot read: {str(e).strip().splitlines()[-1]}") from None
     meshes = [o for o in bpy.data.objects if o.type == "MESH" and o not in before
               and not o.get("micromesh_data") and o.micromesh_source is None]
     meshes = [o for o in meshes if len(o.data.polygons)]
