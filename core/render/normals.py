@@ -12,11 +12,12 @@ import numpy as np
 import torch
 from numba import njit, prange
 
+from .jit import kernel
 from .geometry import NORMAL_EPS
 from .topology import vertex_corners
 
 
-@njit(parallel=True, cache=True)
+@kernel(parallel=True)
 def _face_normals(verts, faces, fn):
     for f in prange(faces.shape[0]):
         i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
@@ -28,7 +29,7 @@ def _face_normals(verts, faces, fn):
     return 0
 
 
-@njit(parallel=True, cache=True)
+@kernel(parallel=True)
 def _vertex_forward(fn, ptr, corners, vn, inv):
     for v in prange(len(ptr) - 1):
         s0 = s1 = s2 = 0.0
@@ -43,7 +44,7 @@ def _vertex_forward(fn, ptr, corners, vn, inv):
     return 0
 
 
-@njit(parallel=True, cache=True)
+@kernel(parallel=True)
 def _vertex_backward(gvn, vn, inv, graw):
     for v in prange(vn.shape[0]):
         d = vn[v, 0] * gvn[v, 0] + vn[v, 1] * gvn[v, 1] + vn[v, 2] * gvn[v, 2]
@@ -52,7 +53,7 @@ def _vertex_backward(gvn, vn, inv, graw):
     return 0
 
 
-@njit(parallel=True, cache=True)
+@kernel(parallel=True)
 def _verts_backward(verts, faces, graw, ptr, corners, gverts):
     for v in prange(len(ptr) - 1):
         s0 = s1 = s2 = 0.0

@@ -15,7 +15,7 @@ from . import shade as sk
 from .normals import vertex_normals_numba
 from .raster import edge_flags_numba, rasterize_numba
 from .sh import SH_QUADRATIC
-from .topology import faces_int32
+from .topology import face_neighbours_int32, faces_int32
 from .types import Raster
 
 __all__ = ["rasterize_numba", "render_numba", "loss_numba", "shade_numba", "antialias_numba"]
@@ -62,7 +62,7 @@ def _codes(verts: np.ndarray, f: np.ndarray, m: np.ndarray, raster: Raster, vt: 
     flags = flags.numpy() if flags is not None else edge_flags_numba(vt, faces, raster.mvp, raster.tri_id)
     code_h = np.empty(t.shape, np.int32)
     code_v = np.empty(t.shape, np.int32)
-    aa.pair_codes(verts, f, m, t, _np(raster.depth), flags, code_h, code_v)
+    aa.pair_codes(verts, f, face_neighbours_int32(faces), m, t, _np(raster.depth), flags, code_h, code_v)
     return code_h, code_v
 
 

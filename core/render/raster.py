@@ -17,6 +17,7 @@ import numpy as np
 import torch
 from numba import njit, prange
 
+from .jit import kernel
 from .topology import face_neighbours_int32, faces_int32
 
 
@@ -27,7 +28,7 @@ def _edge(fa, fb, xa, ya, xb, yb, px, py):
     return (xb - xa) * (py - ya) - (yb - ya) * (px - xa), True
 
 
-@njit(cache=True)
+@kernel()
 def project(verts, m, width, height, sc):
     """sc[i] = (screen x, screen y, 1 / clip w, 1 if in front of the near plane else 0)."""
     hw, hh = 0.5 * width, 0.5 * height
@@ -44,7 +45,7 @@ def project(verts, m, width, height, sc):
     return 0
 
 
-@njit(parallel=True, cache=True)
+@kernel(parallel=True)
 def _raster_kernel(verts, faces, nbr, mvp, width, height, scratch, facing, tri, depth, flags):
     nb = mvp.shape[0]
     nslot = scratch.shape[0]
@@ -101,7 +102,7 @@ def _raster_kernel(verts, faces, nbr, mvp, width, height, scratch, facing, tri, 
     return 0
 
 
-@njit(cache=True)
+@kernel()
 def silhouette_flags(nbr, fc, tb, fb):
     """Per covered pixel, bit e set where edge e of its face is a silhouette in this view: no
     neighbour across it, or the neighbour faces the other way (``fc``: per-face sign of the
@@ -121,7 +122,7 @@ def silhouette_flags(nbr, fc, tb, fb):
     return 0
 
 
-@njit(cache=True)
+@kernel()
 def face_facing(faces, sc, fc):
     """fc[f] <- sign of the screen area of face f (0: degenerate or crossing the near plane)."""
     for f in range(faces.shape[0]):
@@ -133,7 +134,7 @@ def face_facing(faces, sc, fc):
     return 0
 
 
-@njit(parallel=True, cache=True)
+@kernel(parallel=True)
 def project_and_flag(verts, faces, nbr, mvp, width, height, scratch, facing, tri, flags):
     """Silhouette-edge bits for an existing raster (e.g. one made by the torch backend)."""
     nb = mvp.shape[0]

@@ -15,6 +15,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from .jit import kernel
 from .geometry import NORMAL_EPS
 
 MODE_SHADED, MODE_NORMAL, MODE_DEPTH, MODE_MASK = 0, 1, 2, 3
@@ -24,7 +25,7 @@ SLOTS = 8
 _TINY = 1e-300
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always")
 def clip_xyw(verts, m, i):
     vx, vy, vz = np.float64(verts[i, 0]), np.float64(verts[i, 1]), np.float64(verts[i, 2])
     return (m[0, 0] * vx + m[0, 1] * vy + m[0, 2] * vz + m[0, 3],
@@ -32,7 +33,7 @@ def clip_xyw(verts, m, i):
             m[3, 0] * vx + m[3, 1] * vy + m[3, 2] * vz + m[3, 3])
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always")
 def bary(x0, y0, w0, x1, y1, w1, x2, y2, w2, x, y):
     u0, u1, u2 = x0 - x * w0, x1 - x * w1, x2 - x * w2
     t0, t1, t2 = y0 - y * w0, y1 - y * w1, y2 - y * w2
@@ -45,7 +46,7 @@ def bary(x0, y0, w0, x1, y1, w1, x2, y2, w2, x, y):
     return s0 / s, s1 / s, s2 / s, s, u0, u1, u2, t0, t1, t2
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always")
 def bary_backward(g0, g1, g2, b0, b1, b2, s, u0, u1, u2, t0, t1, t2):
     gs = g0 * b0 + g1 * b1 + g2 * b2
     h0, h1, h2 = (g0 - gs) / s, (g1 - gs) / s, (g2 - gs) / s
@@ -58,13 +59,13 @@ def bary_backward(g0, g1, g2, b0, b1, b2, s, u0, u1, u2, t0, t1, t2):
     return gu0, gu1, gu2, gt0, gt1, gt2
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always")
 def add_vertex_grad(buf, i, m, gx, gy, gw):
     for j in range(3):
         buf[i, j] += m[0, j] * gx + m[1, j] * gy + m[3, j] * gw
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always")
 def shade_normal(qa, qb, qk, ch, n0, n1, n2):
     a = qa[ch]
     return (qk[ch] + qb[ch, 0] * n0 + qb[ch, 1] * n1 + qb[ch, 2] * n2
@@ -72,7 +73,7 @@ def shade_normal(qa, qb, qk, ch, n0, n1, n2):
             + 2.0 * (a[0, 1] * n0 * n1 + a[0, 2] * n0 * n2 + a[1, 2] * n1 * n2))
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always")
 def _interp_normal(vn, i0, i1, i2, b0, b1, b2):
     n0 = b0 * vn[i0, 0] + b1 * vn[i1, 0] + b2 * vn[i2, 0]
     n1 = b0 * vn[i0, 1] + b1 * vn[i1, 1] + b2 * vn[i2, 1]
@@ -81,7 +82,7 @@ def _interp_normal(vn, i0, i1, i2, b0, b1, b2):
     return n0 * inv, n1 * inv, n2 * inv, inv
 
 
-@njit(parallel=True, cache=True)
+@kernel(parallel=True)
 def reduce_slots(buf, out):
     """out (N, 3) <- buf (K, N, 3) summed over slots in slot order (deterministic)."""
     for i in prange(buf.shape[1]):
@@ -113,7 +114,7 @@ def reduce(buf: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(parallel=True, cache=True)
+@kernel(parallel=True)
 def shade_forward(verts, faces, vn, mvp, tri, mode, qa, qb, qk, out):
     """out (B, H, W, C) (zeros on entry) <- per-pixel value of ``mode``."""
     nb, height, width = tri.shape
@@ -146,7 +147,7 @@ def shade_forward(verts, faces, vn, mvp, tri, mode, qa, qb, qk, out):
     return 0
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always")
 def pixel_backward(verts, faces, vn, m, f, x, y, mode, qa, qb, qk, g0, g1, g2, gv, gn):
     """Accumulate the gradients of one pixel's value (upstream g0..g2) into gv / gn."""
     i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
@@ -190,7 +191,7 @@ def pixel_backward(verts, faces, vn, m, f, x, y, mode, qa, qb, qk, g0, g1, g2, g
     add_vertex_grad(gv, i2, m, gu2, gt2, ew2 - x * gu2 - y * gt2)
 
 
-@njit(parallel=True, cache=True)
+@kernel(parallel=True)
 def shade_backward(verts, faces, vn, mvp, tri, mode, qa, qb, qk, gout, gv, gn):
     """gv, gn (SLOTS, N, 3) <- per-slot parts of d(sum gout * out)/d verts, d/d vertex normals."""
     nb, height, width = tri.shape

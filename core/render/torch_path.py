@@ -168,78 +168,117 @@ def face_facing(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor, wid
     return out
 
 
+def _face_screen(verts, f_all, m, fidx, width, height):
+    """Screen x, y (P, 3) of faces ``fidx`` (P,) under per-pair matrices m (P, 4, 4); ok (P,)."""
+    v = verts[f_all[fidx]]
+    clip = torch.einsum("prk,pik->pir", m[:, (0, 1, 3), :3], v) + m[:, None, (0, 1, 3), 3]
+    w = clip[..., 2]
+    ws = torch.where(w > 0, w, torch.ones_like(w))
+    sx = (clip[..., 0] / ws + 1.0) * (0.5 * width)
+    sy = (1.0 - clip[..., 1] / ws) * (0.5 * height)
+    return sx, sy, (w > 0).all(1)
+
+
+def _crossings(sx, sy, vertical: bool, fixed, p0):
+    """t (P, 3) where edge k of each face crosses its pair segment (NaN: no straddle) and
+    whether the edge is steep enough for the pair direction (P, 3)."""
+    along, across = (sy, sx) if vertical else (sx, sy)
+    aa, ab = along, along.roll(-1, 1)
+    ca, cb = across, across.roll(-1, 1)
+    fx = fixed[:, None]
+    straddle = ((ca <= fx) & (fx < cb)) | ((cb <= fx) & (fx < ca))
+    den = torch.where(straddle, cb - ca, torch.ones_like(ca))
+    t = aa + (fx - ca) * (ab - aa) / den - p0[:, None]
+    steep = (cb - ca).abs() - (ab - aa).abs()
+    return torch.where(straddle, t, torch.full_like(t, float("nan"))), (steep > 0) if vertical else (steep >= 0)
+
+
+def _pick(t, valid, near_a):
+    """Edge index with the first crossing going away from the occluding pixel, and its t."""
+    key = torch.where(valid, torch.where(near_a[:, None], t, -t), torch.full_like(t, float("inf")))
+    e = key.argmin(1)
+    return e, t.gather(1, e[:, None])[:, 0], valid.any(1)
+
+
+MAX_WALK = 64
+WALK_DEPTH_RATIO = 1.01
+
+
 def antialias_torch(color: torch.Tensor, verts: torch.Tensor, faces: torch.Tensor,
                     nbr: torch.Tensor, mvp: torch.Tensor, tri_id: torch.Tensor,
                     depth: torch.Tensor) -> torch.Tensor:
-    """nvdiffrast-style analytic antialiasing of (B, H, W, C) ``color``.
-
-    For each horizontal and vertical pair of neighbouring pixels with different face ids, the
-    face of the nearer pixel is tested for a silhouette edge (boundary, or the neighbour face
-    ``nbr`` faces the other way in this view) crossing the segment between the two pixel centres at t in [0, 1]. The pixel whose box the edge cuts gets
-    the other pixel's colour blended in by the cut fraction |t - 1/2|; t depends on the edge's
-    projected vertices, so gradients reach them. Same rule as ``antialias.py``.
-    """
+    """nvdiffrast-style analytic antialiasing of (B, H, W, C) ``color``; the rule of
+    ``antialias.py`` (silhouette edges by facing, one pair direction per edge, the walk across
+    sub-pixel faces towards background or a clearly farther surface) in vectorised torch."""
     nb, height, width, nc = color.shape
     out = color
     dt = verts.dtype
     f_all = faces.long()
+    nbr = nbr.long()
     facing = face_facing(verts, faces, mvp, width, height)
+    vd = verts.detach()
     for axis in (2, 1):  # horizontal pairs (along W), then vertical pairs (along H)
+        vertical = axis == 1
         ida = tri_id.narrow(axis, 0, tri_id.shape[axis] - 1)
         idb = tri_id.narrow(axis, 1, tri_id.shape[axis] - 1)
-        da = depth.narrow(axis, 0, depth.shape[axis] - 1)
-        db = depth.narrow(axis, 1, depth.shape[axis] - 1)
-        diff = ida != idb
-        bi, ri, ci = torch.nonzero(diff, as_tuple=True)
+        bi, ri, ci = torch.nonzero(ida != idb, as_tuple=True)
         if len(bi) == 0:
             continue
         fa, fb = ida[bi, ri, ci].long(), idb[bi, ri, ci].long()
-        near_a = (fb < 0) | ((fa >= 0) & ((da[bi, ri, ci] < db[bi, ri, ci]) |
-                                           ((da[bi, ri, ci] == db[bi, ri, ci]) & (fa < fb))))
-        occ = torch.where(near_a, fa, fb)
-        m = mvp.to(dt)[bi]  # (P, 4, 4)
-        fv = f_all[occ]
-        v = verts[fv]
-        clip = torch.einsum("prk,pik->pir", m[:, (0, 1, 3), :3], v) + m[:, None, (0, 1, 3), 3]
-        wv = clip[..., 2]
-        good_w = (wv > 0).all(1)
-        wsafe = torch.where(wv > 0, wv, torch.ones_like(wv))
-        sx = (clip[..., 0] / wsafe + 1.0) * (0.5 * width)
-        sy = (1.0 - clip[..., 1] / wsafe) * (0.5 * height)
-        if axis == 2:  # pair along x at fixed row
-            fixed = ri.to(dt) + 0.5
-            p0 = ci.to(dt) + 0.5
-            along, across = sx, sy
-        else:
-            fixed = ci.to(dt) + 0.5
-            p0 = ri.to(dt) + 0.5
-            along, across = sy, sx
-        t = torch.full_like(fixed, -1.0)
-        for e in range(3):
-            i, j = e, (e + 1) % 3
-            with torch.no_grad():
-                nf = nbr[occ, e]
-                sil = (nf < 0) | (facing[bi, nf.clamp(min=0)] != facing[bi, occ])
-            ya, yb = across[:, i], across[:, j]
-            straddle = ((ya <= fixed) & (fixed < yb)) | ((yb <= fixed) & (fixed < ya))
-            steep = (yb - ya).abs() - (along[:, j] - along[:, i]).abs()
-            straddle &= (steep > 0) if axis == 1 else (steep >= 0)  # one direction per edge
-            den = torch.where(straddle, yb - ya, torch.ones_like(ya))
-            cross = along[:, i] + (fixed - ya) * (along[:, j] - along[:, i]) / den
-            te = cross - p0
-            ok = straddle & sil & good_w & (te >= 0) & (te <= 1) & (t < 0)
-            t = torch.where(ok, te, t)
-        valid = t >= 0
+        da = depth.narrow(axis, 0, depth.shape[axis] - 1)[bi, ri, ci]
+        db = depth.narrow(axis, 1, depth.shape[axis] - 1)[bi, ri, ci]
+        near_a = (fb < 0) | ((fa >= 0) & ((da < db) | ((da == db) & (fa < fb))))
+        walk = torch.where(near_a, (fb < 0) | (db > da * WALK_DEPTH_RATIO),
+                           (fa < 0) | (da > db * WALK_DEPTH_RATIO))
+        fixed = (ci if vertical else ri).to(dt) + 0.5
+        p0 = (ri if vertical else ci).to(dt) + 0.5
+        m = mvp.to(dt)[bi]
+        with torch.no_grad():
+            cur = torch.where(near_a, fa, fb)
+            sx, sy, ok = _face_screen(vd, f_all, m, cur, width, height)
+            t_all, steep = _crossings(sx, sy, vertical, fixed, p0)
+            e, t, alive = _pick(t_all, (t_all >= 0) & (t_all <= 1), near_a)
+            alive &= ok
+            code = torch.full_like(cur, -1)
+            for _ in range(MAX_WALK):
+                n = nbr[cur, e]
+                sil = (n < 0) | (facing[bi, n.clamp(min=0)] != facing[bi, cur])
+                good = alive & sil & steep.gather(1, e[:, None])[:, 0]
+                code = torch.where(good, cur * 3 + e, code)
+                alive &= ~sil & walk
+                if not bool(alive.any()):
+                    break
+                ia, ib = f_all[cur, e], f_all[cur, (e + 1) % 3]
+                nxt = n.clamp(min=0)
+                sx, sy, ok = _face_screen(vd, f_all, m, nxt, width, height)
+                t_all, steep = _crossings(sx, sy, vertical, fixed, p0)
+                fk = f_all[nxt]
+                fk1 = fk.roll(-1, 1)
+                came = ((fk == ia[:, None]) & (fk1 == ib[:, None])) | ((fk == ib[:, None]) & (fk1 == ia[:, None]))
+                ahead = torch.where(near_a[:, None], t_all >= t[:, None], t_all <= t[:, None])
+                e2, t2, found = _pick(t_all, (t_all >= 0) & (t_all <= 1) & ~came & ahead, near_a)
+                alive &= found & ok
+                cur = torch.where(alive, nxt, cur)
+                e = torch.where(alive, e2, e)
+                t = torch.where(alive, t2, t)
+        valid = code >= 0
         if not bool(valid.any()):
             continue
-        bi, ri, ci, t = bi[valid], ri[valid], ci[valid], t[valid]
+        bi, ri, ci, code, fixed, p0, m = bi[valid], ri[valid], ci[valid], code[valid], fixed[valid], p0[valid], m[valid]
+        occ, e = code // 3, code % 3
+        sx, sy, _ = _face_screen(verts, f_all, m, occ, width, height)
+        along, across = (sy, sx) if vertical else (sx, sy)
+        j = (e + 1) % 3
+        la, lb = along.gather(1, e[:, None])[:, 0], along.gather(1, j[:, None])[:, 0]
+        ca, cb = across.gather(1, e[:, None])[:, 0], across.gather(1, j[:, None])[:, 0]
+        t = la + (fixed - ca) * (lb - la) / (cb - ca) - p0
         ia = (bi * height + ri) * width + ci
-        ib = ia + (1 if axis == 2 else width)
+        ib = ia + (width if vertical else 1)
         flat = out.reshape(-1, nc)
-        ca, cb = color.reshape(-1, nc)[ia], color.reshape(-1, nc)[ib]
+        ca_, cb_ = color.reshape(-1, nc)[ia], color.reshape(-1, nc)[ib]
         to_b = t >= 0.5
         alpha = torch.where(to_b, t - 0.5, 0.5 - t)[:, None]
         dst = torch.where(to_b, ib, ia)
-        delta = alpha * torch.where(to_b[:, None], ca - cb, cb - ca)
+        delta = alpha * torch.where(to_b[:, None], ca_ - cb_, cb_ - ca_)
         out = flat.index_add(0, dst, delta.to(flat.dtype)).view(nb, height, width, nc)
     return out
