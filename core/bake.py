@@ -3,7 +3,8 @@
 For each point ``o`` with direction ``D`` (not unit) we look for ``d`` with ``o + D·d`` on the
 reference surface: Embree casts a ray along ``+D`` and one along ``−D`` and the nearer hit wins.
 Where neither hits within ``max_distance`` (or ``D`` is zero) we fall back to the exact nearest
-surface point ``p`` and project it on the direction: ``d = D·(p − o)/|D|²``.
+surface point ``p`` (a BVH query, :mod:`core.closest`) and project it on the direction:
+``d = D·(p − o)/|D|²``.
 
 Precision: Embree traces in float32 (in a frame centred on the reference's bounding box), then
 each hit is re-intersected in float64 with the plane of the triangle Embree reported, so a hit
@@ -17,7 +18,6 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .mesh import TriMesh
 from .threads import default_threads
@@ -88,95 +88,20 @@ def closest_points_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray,
     return out
 
 
-class _NearestIndex:
-    """cKDTree over triangle centroids + a certificate that makes the query exact.
-
-    A triangle's distance to q is at least |q − centroid| − R (R: the largest centroid-to-vertex
-    distance), so once the k-th centroid is farther than best + R no unseen triangle can win;
-    points without that certificate retry with more candidates, then with a ball query.
-    """
-
-    def __init__(self, mesh: TriMesh) -> None:
-        tri = mesh.vertices[mesh.faces]
-        self.tri = tri
-        self.centroids = tri.mean(axis=1)
-        self.radius = float(np.linalg.norm(tri - self.centroids[:, None], axis=2).max())
-        self.tree = cKDTree(self.centroids)
-
-    def _eval(self, q: np.ndarray, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Best of the candidate faces (rows of cand, -1/len padded) for each point."""
-        n, k = cand.shape
-        m = len(self.tri)
-        valid = cand < m
-        cf = np.where(valid, cand, 0).reshape(-1)
-        qq = np.repeat(q, k, axis=0)
-        t = self.tri[cf]
-        cp = closest_points_on_triangles(qq, t[:, 0], t[:, 1], t[:, 2])
-        d2 = np.einsum("ij,ij->i", cp - qq, cp - qq).reshape(n, k)
-        d2[~valid] = np.inf
-        j = np.argmin(d2, axis=1)
-        rows = np.arange(n)
-        return cp.reshape(n, k, 3)[rows, j], cand[rows, j], np.sqrt(d2[rows, j])
-
-    def _ball(self, q: np.ndarray, best: np.ndarray, workers: int, budget: int = 1 << 21):
-        """Exact answer from all centroids within best + R, in chunks of bounded size."""
-        m = len(self.tri)
-        counts = self.tree.query_ball_point(q, best + self.radius + 1e-12, workers=workers,
-                                            return_length=True)
-        p, f, d = np.empty((len(q), 3)), np.empty(len(q), np.int64), np.empty(len(q))
-        start = 0
-        while start < len(q):
-            csum = np.cumsum(counts[start:])
-            stop = start + max(1, int(np.searchsorted(csum, budget, side="right")))
-            balls = self.tree.query_ball_point(q[start:stop], best[start:stop] + self.radius + 1e-12,
-                                               workers=workers)
-            lens = np.array([len(b) for b in balls])
-            cand = np.full((stop - start, int(lens.max())), m, np.int64)
-            cand[np.arange(cand.shape[1])[None, :] < lens[:, None]] = np.concatenate(balls)
-            p[start:stop], f[start:stop], d[start:stop] = self._eval(q[start:stop], cand)
-            start = stop
-        return p, f, d
-
-    def query(self, q: np.ndarray, k: int = 8, chunk: int = 1 << 19,
-              workers: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        n = len(q)
-        point = np.empty((n, 3))
-        face = np.empty(n, np.int64)
-        dist = np.empty(n)
-        m = len(self.tri)
-        k = min(k, m)
-        step = max(1, chunk // k)
-        for s in range(0, n, step):
-            qs = q[s:s + step]
-            dk, cand = self.tree.query(qs, k=k, workers=workers)
-            dk, cand = dk.reshape(len(qs), -1), cand.reshape(len(qs), -1)
-            p, f, d = self._eval(qs, cand)
-            todo = np.flatnonzero((dk[:, -1] - self.radius < d) & (k < m))
-            kk = k
-            while len(todo) and kk < min(512, m):
-                kk = min(4 * kk, m)
-                dk2, cand2 = self.tree.query(qs[todo], k=kk, workers=workers)
-                p2, f2, d2 = self._eval(qs[todo], cand2)
-                p[todo], f[todo], d[todo] = p2, f2, d2
-                todo = todo[(dk2[:, -1] - self.radius < d2) & (kk < m)]
-            if len(todo):  # exact: every centroid that could hold a closer triangle
-                p[todo], f[todo], d[todo] = self._ball(qs[todo], d[todo], workers)
-            point[s:s + step], face[s:s + step], dist[s:s + step] = p, f, d
-        return point, face, dist
-
-
-_NEAREST_CACHE: "weakref.WeakKeyDictionary[TriMesh, _NearestIndex]" = weakref.WeakKeyDictionary()
 _SCENE_CACHE: "weakref.WeakKeyDictionary[TriMesh, _RayScene]" = weakref.WeakKeyDictionary()
 
 
 def nearest_points(points: np.ndarray, reference: TriMesh, *,
                    workers: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Exact nearest surface point of ``reference`` for each point: (points (n,3), face, distance)."""
+    """Exact nearest surface point of ``reference`` for each point: (points (n,3), face, distance).
+
+    A BVH query (:mod:`core.closest`, built once per reference and cached); ``workers``: numba
+    threads for this call (default: the pool's setting, see ``core.threads.set_threads``).
+    """
+    from .closest import closest_point_index  # compiled kernels: imported on first use
+
     q = _as_points(points, "points")
-    idx = _NEAREST_CACHE.get(reference)
-    if idx is None:
-        idx = _NEAREST_CACHE[reference] = _NearestIndex(reference)
-    return idx.query(q, workers=workers or default_threads())
+    return closest_point_index(reference).query(q, threads=workers)
 
 
 # ------------------------------------------------------------------------------- rays
@@ -249,7 +174,7 @@ def bake_displacements(origins: np.ndarray, directions: np.ndarray, reference: T
 
     ``max_distance`` (world units, scalar or (n,)) limits how far a ray hit may be; points
     without a hit (or with a zero direction) use the nearest-point fallback. ``threads``:
-    Embree / cKDTree workers (default: the usable cores).
+    Embree / nearest-point threads (default: the usable cores).
     """
     if not isinstance(reference, TriMesh):
         raise BakeError("reference must be a core.mesh.TriMesh")

@@ -125,7 +125,7 @@ def test_zero_direction_and_miss_fall_back_without_nan(sphere):
 
 def test_nearest_points_exact_against_brute_force():
     rng = np.random.default_rng(3)
-    # Very uneven triangle sizes (the certificate has to escalate).
+    # Very uneven, crossing triangles (large boxes overlap everything in the BVH).
     v = rng.normal(size=(60, 3))
     v[:5] *= 20
     f = rng.integers(0, 60, size=(150, 3))
