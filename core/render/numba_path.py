@@ -28,31 +28,32 @@ def _np(t: torch.Tensor) -> np.ndarray:
 
 
 class _Shade(torch.autograd.Function):
+    """Fused per-pixel shading; positions and normals travel packed as one (N, 6) array."""
+
     @staticmethod
     def forward(ctx, verts, vnormals, faces, mvp, tri, mode: int):
         v, f, m, t = _np(verts), faces_int32(faces), _np(mvp), _np(tri)
-        vn = _np(vnormals) if vnormals is not None else np.zeros((1, 3), v.dtype)
+        has_vn = vnormals is not None
+        pv = np.concatenate([v, _np(vnormals).astype(v.dtype)], axis=1) if has_vn else v
         nc = 3 if mode in (sk.MODE_SHADED, sk.MODE_NORMAL) else 1
         out = np.zeros(t.shape + (nc,), dtype=v.dtype)
-        sk.shade_forward(v, f, vn, m, t, mode, _QA, _QB, _QK, out)
-        ctx.save_for_backward(verts, vnormals if vnormals is not None else verts)
-        ctx.stuff = (faces, mvp, tri, mode, vnormals is not None)
+        sk.shade_forward(pv, f, pv, 3 if has_vn else 0, m, t, mode, _QA, _QB, _QK, out)
+        ctx.pv = pv
+        ctx.stuff = (faces, mvp, tri, mode, has_vn, verts.dtype)
         return torch.from_numpy(out)
 
     @staticmethod
     def backward(ctx, gout):
-        verts, vnormals = ctx.saved_tensors
-        faces, mvp, tri, mode, has_vn = ctx.stuff
+        faces, mvp, tri, mode, has_vn, dtype = ctx.stuff
         if mode == sk.MODE_MASK:
             return None, None, None, None, None, None
-        v = _np(verts)
-        vn = _np(vnormals) if has_vn else np.zeros((1, 3), v.dtype)
-        gv = sk.slot_buffer("shade_v", len(v), v.dtype)
-        gn = sk.slot_buffer("shade_n", len(vn), v.dtype)
-        g = _np(gout.to(verts.dtype))
-        sk.shade_backward(v, faces_int32(faces), vn, _np(mvp), _np(tri), mode, _QA, _QB, _QK, g, gv, gn)
-        gvn = torch.from_numpy(sk.reduce(gn)) if has_vn else None
-        return torch.from_numpy(sk.reduce(gv)), gvn, None, None, None, None
+        pv = ctx.pv
+        width = 6 if has_vn else 3
+        g = sk.slot_buffer("shade", len(pv), pv.dtype, width)
+        sk.shade_backward(pv, faces_int32(faces), pv, 3 if has_vn else 0, _np(mvp), _np(tri), mode,
+                          _QA, _QB, _QK, _np(gout.to(dtype)), g, g)
+        total = torch.from_numpy(sk.reduce(g))
+        return total[:, :3], (total[:, 3:] if has_vn else None), None, None, None, None
 
 
 def _codes(verts: np.ndarray, f: np.ndarray, m: np.ndarray, raster: Raster, vt: torch.Tensor,

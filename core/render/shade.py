@@ -43,7 +43,8 @@ def bary(x0, y0, w0, x1, y1, w1, x2, y2, w2, x, y):
     s = s0 + s1 + s2
     if abs(s) < _TINY:
         s = _TINY
-    return s0 / s, s1 / s, s2 / s, s, u0, u1, u2, t0, t1, t2
+    inv = 1.0 / s
+    return s0 * inv, s1 * inv, s2 * inv, s, u0, u1, u2, t0, t1, t2
 
 
 @njit(inline="always")
@@ -74,19 +75,19 @@ def shade_normal(qa, qb, qk, ch, n0, n1, n2):
 
 
 @njit(inline="always")
-def _interp_normal(vn, i0, i1, i2, b0, b1, b2):
-    n0 = b0 * vn[i0, 0] + b1 * vn[i1, 0] + b2 * vn[i2, 0]
-    n1 = b0 * vn[i0, 1] + b1 * vn[i1, 1] + b2 * vn[i2, 1]
-    n2 = b0 * vn[i0, 2] + b1 * vn[i1, 2] + b2 * vn[i2, 2]
+def _interp_normal(vn, o, i0, i1, i2, b0, b1, b2):
+    n0 = b0 * vn[i0, o] + b1 * vn[i1, o] + b2 * vn[i2, o]
+    n1 = b0 * vn[i0, o + 1] + b1 * vn[i1, o + 1] + b2 * vn[i2, o + 1]
+    n2 = b0 * vn[i0, o + 2] + b1 * vn[i1, o + 2] + b2 * vn[i2, o + 2]
     inv = 1.0 / math.sqrt(n0 * n0 + n1 * n1 + n2 * n2 + NORMAL_EPS)
     return n0 * inv, n1 * inv, n2 * inv, inv
 
 
 @kernel(parallel=True)
 def reduce_slots(buf, out):
-    """out (N, 3) <- buf (K, N, 3) summed over slots in slot order (deterministic)."""
+    """out (N, C) <- buf (K, N, C) summed over slots in slot order (deterministic)."""
     for i in prange(buf.shape[1]):
-        for j in range(3):
+        for j in range(buf.shape[2]):
             s = 0.0
             for k in range(buf.shape[0]):
                 s += buf[k, i, j]
@@ -97,14 +98,15 @@ def reduce_slots(buf, out):
 _POOL: dict = {}
 
 
-def slot_buffer(name: str, n: int, dtype) -> np.ndarray:
-    """A reused (SLOTS, n, 3) scratch array (the kernels zero their own slot): saves page faults."""
-    key = (name, n, np.dtype(dtype).str)
+def slot_buffer(name: str, n: int, dtype, width: int = 3) -> np.ndarray:
+    """A reused (SLOTS, n, width) scratch array (the kernels zero their own slot): saves page
+    faults on every backward."""
+    key = (name, n, width, np.dtype(dtype).str)
     buf = _POOL.get(key)
     if buf is None:
         for k in [k for k in _POOL if k[0] == name]:
             del _POOL[k]
-        buf = _POOL[key] = np.empty((SLOTS, n, 3), dtype=dtype)
+        buf = _POOL[key] = np.empty((SLOTS, n, width), dtype=dtype)
     return buf
 
 
@@ -114,9 +116,10 @@ def reduce(buf: np.ndarray) -> np.ndarray:
     return out
 
 
-@kernel(parallel=True)
-def shade_forward(verts, faces, vn, mvp, tri, mode, qa, qb, qk, out):
-    """out (B, H, W, C) (zeros on entry) <- per-pixel value of ``mode``."""
+@kernel(parallel=True, fastmath={"contract", "arcp"})
+def shade_forward(verts, faces, vn, noff, mvp, tri, mode, qa, qb, qk, out):
+    """out (B, H, W, C) (zeros on entry) <- per-pixel value of ``mode``. Vertex normals are
+    vn[:, noff:noff + 3] (``verts`` and ``vn`` may be one packed (N, 6) array: fewer cache misses)."""
     nb, height, width = tri.shape
     for row in prange(nb * height):
         b, r = row // height, row % height
@@ -138,7 +141,7 @@ def shade_forward(verts, faces, vn, mvp, tri, mode, qa, qb, qk, out):
             if mode == MODE_DEPTH:
                 out[b, r, c, 0] = b0 * w0 + b1 * w1 + b2 * w2
                 continue
-            n0, n1, n2, inv = _interp_normal(vn, i0, i1, i2, b0, b1, b2)
+            n0, n1, n2, inv = _interp_normal(vn, noff, i0, i1, i2, b0, b1, b2)
             if mode == MODE_NORMAL:
                 out[b, r, c, 0], out[b, r, c, 1], out[b, r, c, 2] = n0, n1, n2
             else:
@@ -148,7 +151,7 @@ def shade_forward(verts, faces, vn, mvp, tri, mode, qa, qb, qk, out):
 
 
 @njit(inline="always")
-def pixel_backward(verts, faces, vn, m, f, x, y, mode, qa, qb, qk, g0, g1, g2, gv, gn):
+def pixel_backward(verts, faces, vn, noff, m, f, x, y, mode, qa, qb, qk, g0, g1, g2, gv, gn):
     """Accumulate the gradients of one pixel's value (upstream g0..g2) into gv / gn."""
     i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
     x0, y0, w0 = clip_xyw(verts, m, i0)
@@ -160,7 +163,7 @@ def pixel_backward(verts, faces, vn, m, f, x, y, mode, qa, qb, qk, g0, g1, g2, g
         gb0, gb1, gb2 = g0 * w0, g0 * w1, g0 * w2
         ew0, ew1, ew2 = g0 * b0, g0 * b1, g0 * b2
     else:
-        n0, n1, n2, inv = _interp_normal(vn, i0, i1, i2, b0, b1, b2)
+        n0, n1, n2, inv = _interp_normal(vn, noff, i0, i1, i2, b0, b1, b2)
         if mode == MODE_NORMAL:
             h0, h1, h2 = g0, g1, g2
         else:
@@ -173,34 +176,35 @@ def pixel_backward(verts, faces, vn, m, f, x, y, mode, qa, qb, qk, g0, g1, g2, g
                 h2 += gc * (qb[ch, 2] + 2.0 * (a[2, 0] * n0 + a[2, 1] * n1 + a[2, 2] * n2))
         d = n0 * h0 + n1 * h1 + n2 * h2
         k0, k1, k2 = (h0 - n0 * d) * inv, (h1 - n1 * d) * inv, (h2 - n2 * d) * inv
-        gn[i0, 0] += b0 * k0
-        gn[i0, 1] += b0 * k1
-        gn[i0, 2] += b0 * k2
-        gn[i1, 0] += b1 * k0
-        gn[i1, 1] += b1 * k1
-        gn[i1, 2] += b1 * k2
-        gn[i2, 0] += b2 * k0
-        gn[i2, 1] += b2 * k1
-        gn[i2, 2] += b2 * k2
-        gb0 = k0 * vn[i0, 0] + k1 * vn[i0, 1] + k2 * vn[i0, 2]
-        gb1 = k0 * vn[i1, 0] + k1 * vn[i1, 1] + k2 * vn[i1, 2]
-        gb2 = k0 * vn[i2, 0] + k1 * vn[i2, 1] + k2 * vn[i2, 2]
+        gn[i0, noff + 0] += b0 * k0
+        gn[i0, noff + 1] += b0 * k1
+        gn[i0, noff + 2] += b0 * k2
+        gn[i1, noff + 0] += b1 * k0
+        gn[i1, noff + 1] += b1 * k1
+        gn[i1, noff + 2] += b1 * k2
+        gn[i2, noff + 0] += b2 * k0
+        gn[i2, noff + 1] += b2 * k1
+        gn[i2, noff + 2] += b2 * k2
+        gb0 = k0 * vn[i0, noff] + k1 * vn[i0, noff + 1] + k2 * vn[i0, noff + 2]
+        gb1 = k0 * vn[i1, noff] + k1 * vn[i1, noff + 1] + k2 * vn[i1, noff + 2]
+        gb2 = k0 * vn[i2, noff] + k1 * vn[i2, noff + 1] + k2 * vn[i2, noff + 2]
     gu0, gu1, gu2, gt0, gt1, gt2 = bary_backward(gb0, gb1, gb2, b0, b1, b2, s, u0, u1, u2, t0, t1, t2)
     add_vertex_grad(gv, i0, m, gu0, gt0, ew0 - x * gu0 - y * gt0)
     add_vertex_grad(gv, i1, m, gu1, gt1, ew1 - x * gu1 - y * gt1)
     add_vertex_grad(gv, i2, m, gu2, gt2, ew2 - x * gu2 - y * gt2)
 
 
-@kernel(parallel=True)
-def shade_backward(verts, faces, vn, mvp, tri, mode, qa, qb, qk, gout, gv, gn):
-    """gv, gn (SLOTS, N, 3) <- per-slot parts of d(sum gout * out)/d verts, d/d vertex normals."""
+@kernel(parallel=True, fastmath={"contract", "arcp"})
+def shade_backward(verts, faces, vn, noff, mvp, tri, mode, qa, qb, qk, gout, gv, gn):
+    """gv (SLOTS, N, >=3), gn (SLOTS, N, noff + 3) <- per-slot parts of d(sum gout * out)/d verts
+    and d/d vertex normals (may be one packed (SLOTS, N, 6) buffer with noff = 3)."""
     nb, height, width = tri.shape
     nslot = gv.shape[0]
     nrows = nb * height
     for k in prange(nslot):
         gvk, gnk = gv[k], gn[k]
         gvk[:] = 0.0
-        gnk[:] = 0.0
+        gnk[:] = 0.0  # (a no-op repeat when gv and gn are one packed buffer)
         for row in range(k * nrows // nslot, (k + 1) * nrows // nslot):
             b, r = row // height, row % height
             m = mvp[b]
@@ -215,5 +219,5 @@ def shade_backward(verts, faces, vn, mvp, tri, mode, qa, qb, qk, gout, gv, gn):
                 g2 = np.float64(gout[b, r, c, 2]) if gout.shape[3] > 2 else 0.0
                 if g0 == 0.0 and g1 == 0.0 and g2 == 0.0:
                     continue
-                pixel_backward(verts, faces, vn, m, f, x, y, mode, qa, qb, qk, g0, g1, g2, gvk, gnk)
+                pixel_backward(verts, faces, vn, noff, m, f, x, y, mode, qa, qb, qk, g0, g1, g2, gvk, gnk)
     return 0

@@ -133,7 +133,7 @@ def barycentrics_torch(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tens
     s = beta.sum(1, keepdim=True)
     tiny = torch.finfo(verts.dtype).tiny
     s = torch.where(s.abs() < tiny, torch.full_like(s, tiny), s)
-    return index, face, beta / s, clip[..., 2]
+    return index, face, beta * (1.0 / s), clip[..., 2]
 
 
 def shade_torch(verts: torch.Tensor, faces: torch.Tensor, vnormals: torch.Tensor,
