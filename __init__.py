@@ -2,23 +2,47 @@
 
 Blender loads this package as ``bl_ext.<repo>.micromesh``; scripts load it as ``micromesh``
 through ``micromesh_path.ensure_package()``. Nothing heavy is imported here: the Blender glue
-(operators, UI, preferences) is imported by :func:`register`, so core-only users pay nothing.
+(operators, UI) is imported by :func:`register`, so core-only users pay nothing. Where the
+Python dependencies are missing (a fresh Blender), only the preferences and a setup panel with
+"Install Dependencies" are registered; the rest registers once they are installed.
 """
 from __future__ import annotations
 
+_glue: list = []
 
-def _modules():
-    from . import preferences
+
+def register_glue() -> bool:
+    """Register operators and panels if their dependencies import; True when registered."""
+    if _glue:
+        return True
+    from .operators import deps
+
+    deps.ensure_on_path()
+    if deps.missing_modules(deps.GLUE_MODULES):
+        return False
     from .operators import registry
     from .ui import panels
-    return [preferences, registry, panels]
+
+    for module in (registry, panels):
+        module.register()
+        _glue.append(module)
+    return True
 
 
 def register() -> None:
-    for module in _modules():
-        module.register()
+    from . import preferences
+    from .ui import setup_panel
+
+    preferences.register()
+    setup_panel.register()
+    register_glue()
 
 
 def unregister() -> None:
-    for module in reversed(_modules()):
-        module.unregister()
+    from . import preferences
+    from .ui import setup_panel
+
+    while _glue:
+        _glue.pop().unregister()
+    setup_panel.unregister()
+    preferences.unregister()

@@ -245,7 +245,18 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
-if __name__ == "__main__":
-    code = main()
+def _exit(code: int) -> None:
+    """Leave the process. With the ``bpy`` module (not the Blender binary) end it at once:
+    bpy 4.5 can deadlock in a static destructor at interpreter exit (a "delayed close" file
+    thread); the .blend files are already written and closed."""
+    bpy = sys.modules.get("bpy")
+    if bpy is not None and not bpy.app.binary_path:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
     if code:
         sys.exit(code)
+
+
+if __name__ == "__main__":
+    _exit(main())

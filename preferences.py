@@ -48,6 +48,30 @@ def apply_threads() -> int:
     return set_threads(prefs.threads if prefs else 0)
 
 
+class MICROMESH_OT_install_dependencies(bpy.types.Operator):
+    """Install torch, scipy, numba and Embree into the extension's user folder with pip"""
+    bl_idname = "micromesh.install_dependencies"
+    bl_label = "Install Dependencies"
+
+    def execute(self, context):
+        if not bpy.app.online_access:
+            self.report({"ERROR"}, "Online access is disabled (Preferences > System > Network)")
+            return {"CANCELLED"}
+        r = deps.install()
+        if r.returncode != 0:
+            self.report({"ERROR"}, "pip failed: " + (r.stderr.strip().splitlines() or ["?"])[-1])
+            return {"CANCELLED"}
+        missing = deps.missing_modules()
+        if missing:
+            self.report({"WARNING"}, "Still missing: " + ", ".join(missing))
+            return {"FINISHED"}
+        from . import register_glue
+
+        register_glue()
+        self.report({"INFO"}, "Dependencies installed in " + deps.site_dir())
+        return {"FINISHED"}
+
+
 class MICROMESH_AP_preferences(bpy.types.AddonPreferences):
     bl_idname = PACKAGE
 
@@ -75,9 +99,14 @@ class MICROMESH_AP_preferences(bpy.types.AddonPreferences):
             box.label(text="All Python dependencies found", icon="CHECKMARK")
 
 
+CLASSES = (MICROMESH_OT_install_dependencies, MICROMESH_AP_preferences)
+
+
 def register():
-    bpy.utils.register_class(MICROMESH_AP_preferences)
+    for c in CLASSES:
+        bpy.utils.register_class(c)
 
 
 def unregister():
-    bpy.utils.unregister_class(MICROMESH_AP_preferences)
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)

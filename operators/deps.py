@@ -25,6 +25,8 @@ REQUIREMENTS = {
     "xatlas": "xatlas==0.0.11",
 }
 TORCH_CPU_INDEX = "https://download.pytorch.org/whl/cpu"
+# What the operators and panels need to import at all (the rest is checked when they run).
+GLUE_MODULES = ("numpy", "scipy")
 
 
 def site_dir() -> str:
@@ -44,13 +46,22 @@ def ensure_on_path() -> None:
         sys.path.append(path)
 
 
-def missing_modules() -> list[str]:
-    return [name for name in REQUIREMENTS if importlib.util.find_spec(name) is None]
+def missing_modules(names=None) -> list[str]:
+    """The modules of ``names`` (default: all dependencies) that cannot be imported."""
+    out = []
+    for name in (REQUIREMENTS if names is None else names):
+        try:
+            found = importlib.util.find_spec(name) is not None
+        except (ImportError, ValueError):  # e.g. sys.modules[name] is None
+            found = False
+        if not found:
+            out.append(name)
+    return out
 
 
 def pip_command(target: str, modules: list[str] | None = None, cuda: bool = False) -> list[str]:
     """The pip command that installs the missing (or given) modules into ``target``."""
-    mods = modules if modules is not None else missing_modules()
+    mods = [m for m in (modules if modules is not None else missing_modules()) if m in REQUIREMENTS]
     cmd = [sys.executable, "-m", "pip", "install", "--disable-pip-version-check",
            "--target", target, "numpy<2"] + [REQUIREMENTS[m] for m in mods]
     if "torch" in mods and not cuda:

@@ -8,28 +8,7 @@ import bpy
 import numpy as np
 from bpy.props import IntProperty, StringProperty
 
-from . import deps, writeback
-
-
-class MICROMESH_OT_install_dependencies(bpy.types.Operator):
-    """Install torch, scipy, numba and Embree into the extension's user folder with pip"""
-    bl_idname = "micromesh.install_dependencies"
-    bl_label = "Install Dependencies"
-
-    def execute(self, context):
-        if not bpy.app.online_access:
-            self.report({"ERROR"}, "Online access is disabled (Preferences > System > Network)")
-            return {"CANCELLED"}
-        r = deps.install()
-        if r.returncode != 0:
-            self.report({"ERROR"}, "pip failed: " + (r.stderr.strip().splitlines() or ["?"])[-1])
-            return {"CANCELLED"}
-        missing = deps.missing_modules()
-        if missing:
-            self.report({"WARNING"}, "Still missing: " + ", ".join(missing))
-        else:
-            self.report({"INFO"}, "Dependencies installed in " + deps.site_dir())
-        return {"FINISHED"}
+from . import writeback
 
 
 class MICROMESH_OT_apply_preset(bpy.types.Operator):
@@ -120,5 +99,5 @@ class MICROMESH_OT_open_report(bpy.types.Operator):
         return {"FINISHED"}
 
 
-CLASSES = (MICROMESH_OT_install_dependencies, MICROMESH_OT_apply_preset,
+CLASSES = (MICROMESH_OT_apply_preset,
            MICROMESH_OT_set_face_level, MICROMESH_OT_open_report)

@@ -16,7 +16,10 @@ def _stop_on_load(*_args):
 
 
 def register():
+    import atexit
+
     deps.ensure_on_path()
+    atexit.register(job.stop_active)  # quitting stops the worker
     props.register()
     for c in CLASSES:
         bpy.utils.register_class(c)
@@ -24,7 +27,10 @@ def register():
 
 
 def unregister():
+    import atexit
+
     job.stop_active()
+    atexit.unregister(job.stop_active)
     if _stop_on_load in bpy.app.handlers.load_pre:
         bpy.app.handlers.load_pre.remove(_stop_on_load)
     for c in reversed(CLASSES):

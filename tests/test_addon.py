@@ -17,12 +17,13 @@ OPERATORS = ("MICROMESH_OT_make_base", "MICROMESH_OT_check_base", "MICROMESH_OT_
              "MICROMESH_OT_construct", "MICROMESH_OT_cancel_construct",
              "MICROMESH_OT_set_face_level", "MICROMESH_OT_apply_preset",
              "MICROMESH_OT_open_report", "MICROMESH_OT_install_dependencies")
+ALWAYS = ("MICROMESH_PT_setup",)
 PANELS = ("MICROMESH_PT_main", "MICROMESH_PT_base", "MICROMESH_PT_cameras",
           "MICROMESH_PT_construct", "MICROMESH_PT_result", "MICROMESH_PT_export")
 
 
 def _registered() -> dict[str, bool]:
-    return {name: hasattr(bpy.types, name) for name in OPERATORS + PANELS}
+    return {name: hasattr(bpy.types, name) for name in OPERATORS + PANELS + ALWAYS}
 
 
 @pytest.fixture
@@ -83,3 +84,52 @@ def test_install_zip_and_run_operators(repo, tmp_path):
     finally:
         bpy.ops.preferences.addon_disable(module=module)
     assert not any(_registered().values())
+
+
+MISSING_DEPS_SCRIPT = r"""
+import os, sys, tempfile
+sys.modules["scipy"] = None          # as in a fresh Blender: no scipy, torch, numba, embree
+sys.modules["torch"] = None
+import bpy
+d = tempfile.mkdtemp()
+bpy.ops.wm.read_factory_settings(use_empty=True)
+r = bpy.context.preferences.extensions.repos.new(name="nodeps", module="nodeps",
+                                                 custom_directory=d, source="USER")
+os.symlink(sys.argv[1], os.path.join(r.directory, "micromesh"))
+assert bpy.ops.preferences.addon_enable(module="bl_ext.nodeps.micromesh") == {"FINISHED"}
+mod = sys.modules["bl_ext.nodeps.micromesh"]
+print("setup", hasattr(bpy.types, "MICROMESH_PT_setup"), "install",
+      hasattr(bpy.types, "MICROMESH_OT_install_dependencies"), "construct",
+      hasattr(bpy.types, "MICROMESH_OT_construct"))
+missing = sys.modules["bl_ext.nodeps.micromesh.operators.deps"].missing_modules()
+print("missing", ",".join(missing))
+bpy.ops.preferences.addon_disable(module="bl_ext.nodeps.micromesh")
+print("after", hasattr(bpy.types, "MICROMESH_PT_setup"), hasattr(bpy.types, "MICROMESH_OT_install_dependencies"))
+"""
+
+
+def test_enables_without_dependencies_and_offers_install():
+    """In a Blender without scipy/torch the add-on still enables: preferences, the setup panel
+    and Install Dependencies only (checked in a fresh process with those imports blocked)."""
+    import subprocess
+
+    r = subprocess.run([sys.executable, "-c", MISSING_DEPS_SCRIPT, str(ROOT)], capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "setup True install True construct False" in r.stdout, r.stdout + r.stderr
+    assert "missing scipy,torch" in r.stdout
+    assert "after False False" in r.stdout
+
+
+def test_dependency_install_command():
+    import micromesh_path
+
+    micromesh_path.ensure_package()
+    from micromesh.operators import deps
+
+    assert deps.missing_modules() == []  # the venv has everything
+    cmd = deps.pip_command("/tmp/target", ["torch", "scipy"])
+    assert cmd[:4] == [sys.executable, "-m", "pip", "install"]
+    assert "--target" in cmd and "/tmp/target" in cmd and "numpy<2" in cmd
+    assert "torch==2.13.0" in cmd and "scipy==1.17.1" in cmd
+    assert cmd[cmd.index("--extra-index-url") + 1] == deps.TORCH_CPU_INDEX

@@ -39,7 +39,7 @@ class MICROMESH_PT_main(_Panel, bpy.types.Panel):
         from ..operators import deps
 
         missing = deps.missing_modules()
-        if missing:
+        if missing:  # e.g. torch: projection works, the optimiser needs it
             box = self.layout.box()
             box.label(text="Missing: " + ", ".join(missing), icon="ERROR")
             box.operator("micromesh.install_dependencies", icon="IMPORT")
