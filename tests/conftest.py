@@ -20,3 +20,19 @@ def mesh_path(name: str) -> Path:
     if not p.exists():
         pytest.skip(f"real test mesh {name} not found in {MESHES} (../shared/meshes absent)")
     return p
+
+
+# The bpy 4.5 module can deadlock in a C++ static destructor at process exit (its
+# "delayed close" file thread, seen with gdb: GlobalState::~GlobalState waiting in
+# pthread_cond_destroy) after the tests have passed. Where bpy was imported, end the process
+# right after pytest has finished reporting, with pytest's exit status.
+def pytest_sessionfinish(session, exitstatus):
+    session.config._micromesh_exitstatus = int(exitstatus)
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_unconfigure(config):
+    if "bpy" in sys.modules and hasattr(config, "_micromesh_exitstatus"):
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(config._micromesh_exitstatus)
