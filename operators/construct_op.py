@@ -193,6 +193,9 @@ class MICROMESH_OT_construct(bpy.types.Operator):
             self.report({"ERROR"}, state.error)
             return {"CANCELLED"}
         obj = finish(context, self._prep, state.result)
+        for area in context.screen.areas:  # show the level colours in solid shading
+            if area.type == "VIEW_3D" and area.spaces.active.shading.type == "SOLID":
+                area.spaces.active.shading.color_type = "ATTRIBUTE"
         self.report({"INFO"}, _summary(obj, state.result))
         return {"FINISHED"}
 

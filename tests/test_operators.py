@@ -270,3 +270,21 @@ def test_bad_input_is_reported(scene):
     with pytest.raises(RuntimeError, match="unknown setting"):
         bpy.ops.micromesh.construct(method="PROJECTION")
     assert "rock_micromesh" not in bpy.data.objects
+
+
+def test_closing_the_file_stops_a_running_construction(scene):
+    import threading
+
+    running = threading.Event()
+
+    def work(progress, should_stop):
+        running.set()
+        while not should_stop():
+            running.wait(0.001)
+        raise construct_op.pipeline.PipelineCancelled()
+
+    j = job.Job(work).start()
+    running.wait(5)
+    bpy.ops.wm.read_factory_settings(use_empty=True)  # load_pre handler stops the worker
+    assert not j.alive and job.active_job() is None
+    assert j.poll().cancelled

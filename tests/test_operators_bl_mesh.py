@@ -75,3 +75,24 @@ def test_decimate_bad_input():
         bl_mesh.decimate(m.vertices, m.faces)
     with pytest.raises(ValueError):
         bl_mesh.decimate(m.vertices, m.faces, ratio=0.5, symmetry="W")
+
+
+def test_decimate_object_vertex_group_weighting():
+    obj = _sphere()
+    vg = obj.vertex_groups.new(name="keep")
+    top = [v.index for v in obj.data.vertices if v.co.z > 0]
+    vg.add(top, 1.0, "REPLACE")
+
+    def halves(m):
+        c = m.vertices[m.faces].mean(1)[:, 2]
+        return int((c > 0).sum()), int((c < 0).sum())
+
+    plain = halves(bl_mesh.decimate_object(obj, ratio=0.3))
+    weighted = halves(bl_mesh.decimate_object(obj, ratio=0.3, vertex_group="keep"))
+    inverted = halves(bl_mesh.decimate_object(obj, ratio=0.3, vertex_group="keep",
+                                              invert_vertex_group=True))
+    assert abs(plain[0] - plain[1]) <= 0.1 * sum(plain)           # symmetric without weights
+    assert abs(weighted[0] - weighted[1]) > 0.2 * sum(weighted)   # the group shifts the detail
+    assert (weighted[0] > weighted[1]) != (inverted[0] > inverted[1])
+    with pytest.raises(ValueError, match="vertex group"):
+        bl_mesh.decimate_object(obj, ratio=0.3, vertex_group="nope")
