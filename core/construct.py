@@ -25,7 +25,7 @@ from .bake import SOURCE_NEAREST, bake_displacements
 from .bounds import DirectionBounds, shell_volume, tight_bounds
 from .cameras import Cameras, fibonacci_cameras
 from .laplacian import ScreenedSolver, uniform_laplacian
-from .lod import (chamfer_face_errors, face_error_sums, in_optimization_lod,
+from .lod import (chamfer_face_errors, exchange_to_budget, face_error_sums, in_optimization_lod,
                   micro_triangle_count, post_process_lod, relative_gain, roll_back_to_budget,
                   trim_to_budget)
 from .losses import (isotropy_loss, laplacian_smoothing_loss, mean_edge_length,
@@ -120,6 +120,23 @@ def torch_vertex_normals(P: torch.Tensor, F: torch.Tensor) -> torch.Tensor:
     for k in range(3):
         n.index_add_(0, F[:, k], fn)
     return n / n.norm(dim=1, keepdim=True).clamp_min(1e-20)
+
+
+def _interp_gather(interp, device) -> tuple[torch.Tensor, torch.Tensor]:
+    """The (n_micro, n_base) interpolation matrix as (n, 3) indices and weights (zero-padded)."""
+    m = interp.tocsr()
+    n = m.shape[0]
+    cnt = np.diff(m.indptr)
+    if cnt.max(initial=0) > 3:
+        raise ConstructError("interpolation rows with more than 3 entries")
+    idx = np.zeros((n, 3), np.int64)
+    w = np.zeros((n, 3))
+    pos = np.arange(len(m.indices)) - np.repeat(m.indptr[:-1], cnt)
+    rows = np.repeat(np.arange(n), cnt)
+    idx[rows, pos] = m.indices
+    w[rows, pos] = m.data
+    return (torch.as_tensor(idx, device=device),
+            torch.as_tensor(w, dtype=torch.float32, device=device))
 
 
 def _bake(mm: MicroMesh, reference: TriMesh, max_distance: float) -> np.ndarray:
@@ -334,7 +351,7 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
         solver = ScreenedSolver(Lm, s.lambda_micro) if s.reparameterize else None
         state["disp"] = Reparameterized(mm_new.displacements, solver, device=device)
         state["micro_L"] = None if s.reparameterize else scipy_to_torch_sparse(Lm, device=device)
-        state["interp"] = scipy_to_torch_sparse(t.interp, device=device)
+        state["interp"] = _interp_gather(t.interp, device)
         state["tris"] = torch.as_tensor(t.triangles, dtype=torch.int64, device=device)
         state["groups"] = vertex_groups(base_u.faces, nb, t.face_vertex_ptr, t.face_vertex_idx,
                                         t.n_vertices, device=device)
@@ -352,8 +369,13 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
         P = V0 + O
         N = torch_vertex_normals(P.detach(), F)
         D = state["disp"].value()
-        ip = state["interp"]
-        X = torch.sparse.mm(ip, P) + torch.sparse.mm(ip, N) * D[:, None]
+        idx, w = state["interp"]
+        # interp has at most 3 entries per row: a gather is far cheaper than a sparse matmul.
+        # (index_select per column: ~15x faster than fancy indexing or sparse.mm on CPU)
+        X = 0
+        for k in range(3):
+            i = idx[:, k]
+            X = X + w[:, k:k + 1] * (P.index_select(0, i) + N.index_select(0, i) * D[:, None])
         return P, N, D, X
 
     def current_micromesh() -> MicroMesh:
@@ -380,13 +402,20 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
             gains = relative_gain(last_errors["prev"], errs)
             gains_log[level] = gains
         if s.lod == "in_optim":
+            # With a budget, the budget decides (ours): Algorithm 1 runs with τ = -inf (the
+            # one-ring rule still holds) and a binding budget is then spent by gain order.
+            tau = -np.inf if cost is not None else s.tau_in
             new = in_optimization_lod(old, level, s.min_level, gains, base_u.face_neighbors_csr,
-                                      s.tau_in)
+                                      tau)
         else:
             new = np.where(old == level, level + 1, old)
-        if cost is not None:
-            prio = gains if gains is not None else errs
-            new = trim_to_budget(old, new, prio, cost, budget)
+        if cost is not None and cost(new) > budget:
+            if s.lod == "in_optim" and gains is not None and level >= 1:
+                new = exchange_to_budget(old, level, last_errors["prev"], errs,
+                                         base_u.face_adjacency, cost, budget, s.min_level)
+            else:
+                prio = gains if gains is not None else errs
+                new = trim_to_budget(old, new, prio, cost, budget)
         new = balance_levels(base_u, np.minimum(new, s.max_level))
         if errs is not None:
             last_errors["prev"] = errs

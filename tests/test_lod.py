@@ -116,3 +116,23 @@ def test_chamfer_face_errors():
     e = chamfer_face_errors(mv, mf, ref, 2)
     assert e[0] == pytest.approx(0.0)
     assert e[1] == pytest.approx(1.0)                  # 0.5 one way + 0.5 the other
+
+
+def test_exchange_to_budget_moves_triangles_to_where_they_help():
+    from core.lod import exchange_to_budget
+    m = _grid()
+    n = m.n_faces
+    lv = np.full(n, 2)
+    budget = micro_triangle_count(lv)                  # binding: uniform level 2 exactly
+    e_prev = np.full(n, 1.0)
+    e_now = np.full(n, 0.99)                           # level 2 barely helped almost everywhere
+    hot = np.array([10, 11, 40, 41])
+    e_prev[hot], e_now[hot] = 10.0, 4.0                # ... but a lot here
+    out = exchange_to_budget(lv, 2, e_prev, e_now, m.face_adjacency, micro_triangle_count, budget, 1)
+    assert micro_triangle_count(out) <= budget
+    assert is_balanced(m, out)
+    assert (out[hot] == 3).all()
+    assert (out == 1).sum() >= 4 * len(hot)
+    # Nothing worth paying for: unchanged.
+    same = exchange_to_budget(lv, 2, np.ones(n), np.ones(n), m.face_adjacency, micro_triangle_count, budget, 1)
+    assert np.array_equal(same, lv)
