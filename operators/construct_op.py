@@ -173,8 +173,10 @@ class MICROMESH_OT_construct(bpy.types.Operator):
         return {"RUNNING_MODAL"}
 
     def modal(self, context, event):
-        if event.type == "ESC":
+        if event.type == "ESC" and event.value == "PRESS":
             self._job.cancel()
+            context.scene.micromesh.phase = "cancelling"
+            return {"RUNNING_MODAL"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
         state = self._job.poll()
