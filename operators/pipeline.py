@@ -63,6 +63,11 @@ def run(reference: TriMesh, base: TriMesh, cameras: Cameras | None, settings: Co
         ref_u = TriMesh(norm.apply(reference.vertices), reference.faces)
         base_u = TriMesh(norm.apply(base.vertices), base.faces)
         mm_u, metrics = _staged(ref_u, base_u, settings, progress, should_stop, levels, level)
+        if settings.compute_metrics and has_optimizer():
+            from ..core.construct import evaluate
+
+            progress({"phase": "metrics", "iteration": 2, "total": 2, "fraction": 0.97})
+            metrics.update(evaluate(mm_u, ref_u, settings))
         inv = 1.0 / norm.scale
         mm_w = MicroMesh(TriMesh(norm.invert(mm_u.base.vertices), mm_u.base.faces),
                          mm_u.directions, mm_u.levels, mm_u.displacements * inv, mm_u.topology)
