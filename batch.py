@@ -27,9 +27,20 @@ class BatchError(ValueError):
     """Bad input: reported as one line, exit status 2."""
 
 
+def _in_blender() -> bool:
+    """True inside the Blender executable (not the ``bpy`` module)."""
+    bpy = sys.modules.get("bpy")
+    return bool(bpy is not None and bpy.app.binary_path)
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     if argv is None:
-        argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+        if "--" in sys.argv:  # blender -b --python batch.py -- ARGS
+            argv = sys.argv[sys.argv.index("--") + 1:]
+        elif _in_blender():   # blender -b --python batch.py: Blender's own arguments only
+            argv = []
+        else:                 # python batch.py ARGS
+            argv = sys.argv[1:]
     p = argparse.ArgumentParser(prog="batch.py", description=__doc__.split("\n")[0])
     p.add_argument("--input", help="a mesh file or a folder of mesh files (default: the demo)")
     p.add_argument("--output", default="out", help="output folder (default: out)")
