@@ -109,7 +109,9 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, target_faces: int | None =
 
 def _decimate_temp(temp, target_faces, ratio, symmetry, vertex_group, vertex_group_factor,
                    invert_vertex_group, world) -> TriMesh:
-    n_tris = sum(len(p.vertices) - 2 for p in temp.data.polygons)
+    sizes = np.empty(len(temp.data.polygons), np.int32)
+    temp.data.polygons.foreach_get("loop_total", sizes)
+    n_tris = int((sizes - 2).sum())
     if n_tris == 0:
         raise MeshError("mesh to decimate has no faces")
     if target_faces is not None:
