@@ -5,33 +5,13 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
+from shapes import icosphere
 from core.bounds import (
     BoundsError, DirectionBounds, micromesh_shell_volume, normalized_values, prismoid_volumes,
     shell_volume, tight_bounds,
 )
 from core.mesh import TriMesh
 from core.micromesh import MicroMesh
-
-
-def icosphere(k: int) -> TriMesh:
-    t = (1 + 5 ** 0.5) / 2
-    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
-                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
-    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9],
-                  [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2],
-                  [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10],
-                  [8, 6, 7], [9, 8, 1]])
-    v = v / np.linalg.norm(v, axis=1, keepdims=True)
-    for _ in range(k):
-        m = TriMesh(v, f)
-        e = m.edges
-        mid = 0.5 * (v[e[:, 0]] + v[e[:, 1]])
-        a, b, c = f.T
-        ab, bc, ca = (len(v) + m.face_edges).T
-        v = np.concatenate([v, mid / np.linalg.norm(mid, axis=1, keepdims=True)])
-        f = np.concatenate([np.stack([a, ab, ca], 1), np.stack([ab, b, bc], 1),
-                            np.stack([ca, bc, c], 1), np.stack([ab, bc, ca], 1)])
-    return TriMesh(v, f)
 
 
 def enclosed_volume(v, f) -> float:

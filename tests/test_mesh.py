@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from shapes import torus
 from core.mesh import MeshError, TriMesh, unit_sphere_normalization
 
 
@@ -11,20 +12,6 @@ def tetrahedron() -> TriMesh:
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
     f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
     return TriMesh(v, f)
-
-
-def torus(n: int = 12, m: int = 8, r0: float = 1.0, r1: float = 0.3) -> TriMesh:
-    i, j = np.meshgrid(np.arange(n), np.arange(m), indexing="ij")
-    a, b = 2 * np.pi * i / n, 2 * np.pi * j / m
-    v = np.stack([(r0 + r1 * np.cos(b)) * np.cos(a), (r0 + r1 * np.cos(b)) * np.sin(a),
-                  r1 * np.sin(b)], -1).reshape(-1, 3)
-    idx = lambda i, j: (i % n) * m + (j % m)  # noqa: E731
-    faces = []
-    for a_ in range(n):
-        for b_ in range(m):
-            p, q, r, s = idx(a_, b_), idx(a_ + 1, b_), idx(a_ + 1, b_ + 1), idx(a_, b_ + 1)
-            faces += [[p, q, r], [p, r, s]]
-    return TriMesh(v, np.array(faces))
 
 
 def test_closed_tetrahedron_topology():

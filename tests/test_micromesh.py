@@ -5,34 +5,12 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
+from shapes import icosahedron, torus
 from core.mesh import TriMesh
 from core.micromesh import MicroMesh, MicroMeshError, Tessellation
 from core.microtopology import (
     balance_levels, barycentric_weights, bird_order, snap_targets, umajor_index,
 )
-
-
-def icosahedron() -> TriMesh:
-    t = (1 + 5 ** 0.5) / 2
-    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
-                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
-    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9],
-                  [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2],
-                  [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10],
-                  [8, 6, 7], [9, 8, 1]])
-    return TriMesh(v / np.linalg.norm(v, axis=1, keepdims=True), f)
-
-
-def torus(n: int = 10, m: int = 6) -> TriMesh:
-    i, j = np.meshgrid(np.arange(n), np.arange(m), indexing="ij")
-    th, ph = 2 * np.pi * i / n, 2 * np.pi * j / m
-    v = np.stack([(1 + 0.35 * np.cos(ph)) * np.cos(th), (1 + 0.35 * np.cos(ph)) * np.sin(th),
-                  0.35 * np.sin(ph)], -1).reshape(-1, 3)
-    idx = lambda a, b: (a % n) * m + (b % m)  # noqa: E731
-    q = [idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1)]
-    f = np.concatenate([np.stack([q[0], q[1], q[2]], -1).reshape(-1, 3),
-                        np.stack([q[0], q[2], q[3]], -1).reshape(-1, 3)])
-    return TriMesh(v, f)
 
 
 def closed(tris: np.ndarray) -> bool:
@@ -114,7 +92,7 @@ def test_validation_errors():
 @settings(max_examples=15, deadline=None)
 @given(seed=st.integers(0, 2 ** 31 - 1), use_torus=st.booleans())
 def test_tessellation_watertight(seed, use_torus):
-    mesh = torus() if use_torus else icosahedron()
+    mesh = torus(10, 6) if use_torus else icosahedron()
     mm = random_mm(mesh, seed)
     tess = mm.tessellate()
     assert isinstance(tess, Tessellation)
@@ -237,7 +215,7 @@ def test_sphere_example():
 
 
 def test_with_levels_down_and_errors():
-    mesh = torus()
+    mesh = torus(10, 6)
     mm = random_mm(mesh, 2, max_level=3)
     down = mm.with_levels(np.maximum(mm.levels - 1, 0) * 0)
     assert down.n_vertices == mesh.n_vertices

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
+from shapes import icosahedron, icosphere, torus
 from core.mesh import TriMesh
 from core.microtopology import (
     LevelError, balance_levels, barycentric_weights, bird_index, bird_order, build_topology,
@@ -14,45 +15,6 @@ from core.microtopology import (
 
 
 # ------------------------------------------------------------------ test meshes
-def icosahedron() -> TriMesh:
-    t = (1 + 5 ** 0.5) / 2
-    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
-                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
-    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9],
-                  [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2],
-                  [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10],
-                  [8, 6, 7], [9, 8, 1]])
-    return TriMesh(v / np.linalg.norm(v, axis=1, keepdims=True), f)
-
-
-def icosphere(k: int) -> TriMesh:
-    m = icosahedron()
-    v, f = m.vertices, m.faces
-    for _ in range(k):
-        mm = TriMesh(v, f)
-        e = mm.edges
-        mid = 0.5 * (v[e[:, 0]] + v[e[:, 1]])
-        v2 = np.concatenate([v, mid / np.linalg.norm(mid, axis=1, keepdims=True)])
-        a, b, c = f.T
-        ab, bc, ca = (len(v) + mm.face_edges).T
-        f = np.concatenate([np.stack([a, ab, ca], 1), np.stack([ab, b, bc], 1),
-                            np.stack([ca, bc, c], 1), np.stack([ab, bc, ca], 1)])
-        v = v2
-    return TriMesh(v, f)
-
-
-def torus(n: int = 12, m: int = 8, R: float = 1.0, r: float = 0.35) -> TriMesh:
-    i, j = np.meshgrid(np.arange(n), np.arange(m), indexing="ij")
-    th, ph = 2 * np.pi * i / n, 2 * np.pi * j / m
-    v = np.stack([(R + r * np.cos(ph)) * np.cos(th), (R + r * np.cos(ph)) * np.sin(th),
-                  r * np.sin(ph)], -1).reshape(-1, 3)
-    idx = lambda a, b: (a % n) * m + (b % m)  # noqa: E731
-    q = [idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1)]
-    f = np.concatenate([np.stack([q[0], q[1], q[2]], -1).reshape(-1, 3),
-                        np.stack([q[0], q[2], q[3]], -1).reshape(-1, 3)])
-    return TriMesh(v, f)
-
-
 MESHES = {"ico": icosahedron(), "sphere": icosphere(1), "torus": torus()}
 
 
