@@ -104,7 +104,9 @@ def main() -> None:
     p.add_argument("--sizes", type=int, nargs="+", default=None, help="triangle counts")
     p.add_argument("--res", type=int, nargs="+", default=None, help="image sizes (square)")
     p.add_argument("--views", type=int, default=24)
-    p.add_argument("--repeat", type=int, default=None)
+    p.add_argument("--repeat", type=int, default=None, help="timed runs per figure (numba)")
+    p.add_argument("--torch-repeat", type=int, default=None,
+                   help="timed runs per figure for the slow plain-torch path (default: --repeat)")
     p.add_argument("--backends", nargs="+", default=["numba", "torch"], choices=["numba", "torch"])
     p.add_argument("--device", default="cpu", help="cpu or cuda (cuda runs the torch backend only)")
     p.add_argument("--child", help=argparse_suppress())
@@ -124,7 +126,8 @@ def main() -> None:
         for r in res:
             row = {"triangles": n, "res": r, "views": a.views}
             for be in backends:
-                cfg = dict(backend=be, device=a.device, triangles=n, res=r, views=a.views, repeat=repeat)
+                rep = a.torch_repeat if (be == "torch" and a.torch_repeat) else repeat
+                cfg = dict(backend=be, device=a.device, triangles=n, res=r, views=a.views, repeat=rep)
                 cmd = [sys.executable, __file__, "--child", json.dumps(cfg), "--threads", str(threads)]
                 out = subprocess.run(cmd, capture_output=True, text=True)
                 if out.returncode:
@@ -138,7 +141,8 @@ def main() -> None:
             if len(backends) == 2:
                 row["speed-up fwd+bwd"] = row["torch fwd+bwd s"] / row["numba fwd+bwd s"]
             rows.append(row)
-            print(f"done {n} @ {r}", file=sys.stderr, flush=True)
+            print(f"done {n} @ {r}: " + ", ".join(f"{k} {C._fmt(v)}" for k, v in row.items()),
+                  file=sys.stderr, flush=True)
     C.print_table(rows, title=f"render iteration, {a.views} views, {threads} threads "
                               "(rasterise + shade + antialias + L1, forward / forward+backward)")
     C.write_json(a.json, records, threads=threads)

@@ -6,8 +6,8 @@ import pytest
 import torch
 
 from core.cameras import fibonacci_cameras
-from core.render import Raster, RenderError, rasterize, reference_images, render, render_loss
-from core.threads import set_threads
+from core.render import (Raster, RenderError, interpolate, rasterize, reference_images, render,
+                         render_loss)
 
 
 def icosphere(subdivisions: int = 2, noise: float = 0.0, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -85,3 +85,20 @@ def test_shapes_and_kinds(sphere):
         render_loss(v, f, cams, torch.zeros(2, 31, 32, 3))
     with pytest.raises(RenderError):
         rasterize(v, f + len(v), cams)
+
+
+def test_interpolated_positions_lie_on_the_pixel_rays(sphere):
+    v, f = sphere
+    v = v.double()
+    cams = fibonacci_cameras(2, width=24)
+    r = rasterize(v, f, cams)
+    pos = interpolate(v, v, f, cams, raster=r)  # world position of each pixel's surface point
+    hom = torch.cat([pos, torch.ones_like(pos[..., :1])], -1)
+    clip = torch.einsum("bij,bhwj->bhwi", torch.from_numpy(cams.mvp), hom)
+    m = r.mask
+    ndc_x = clip[..., 0][m] / clip[..., 3][m]
+    cols = torch.arange(24, dtype=torch.float64).expand(2, 24, 24)[m]
+    assert torch.allclose(ndc_x, (cols + 0.5) / 12 - 1, atol=1e-9)
+    depth = render(v, f, cams, kind="depth", raster=r, antialias=False)[..., 0]
+    assert torch.allclose(clip[..., 3][m], depth[m], atol=1e-9)
+    assert (pos[~m] == 0).all()

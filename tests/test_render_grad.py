@@ -68,11 +68,28 @@ def test_antialias_gradients_match_finite_differences(backend, kind):
         np.testing.assert_allclose(ana, num, rtol=1e-4, atol=1e-5 * np.abs(num).max())
 
 
+def subdivided_triangle(corners: torch.Tensor, n: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """The triangle split into n^2 coplanar faces (n segments per edge), consistently oriented."""
+    idx, pts = {}, []
+    for i in range(n + 1):
+        for j in range(n + 1 - i):
+            idx[i, j] = len(pts)
+            pts.append(corners[0] + (corners[1] - corners[0]) * i / n + (corners[2] - corners[0]) * j / n)
+    faces = []
+    for i in range(n):
+        for j in range(n - i):
+            faces.append([idx[i, j], idx[i + 1, j], idx[i, j + 1]])
+            if i + j < n - 1:
+                faces.append([idx[i + 1, j], idx[i + 1, j + 1], idx[i, j + 1]])
+    return torch.stack(pts), torch.tensor(faces)
+
+
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_translated_triangle_changes_coverage_and_gradient_sign(backend):
+@pytest.mark.parametrize("segments", [1, 24])  # 24: faces smaller than a pixel (the walk)
+def test_translated_triangle_changes_coverage_and_gradient_sign(backend, segments):
     cams = front_camera(32)
-    base = torch.tensor([[-0.5, -0.45, 0.0], [0.45, -0.4, 0.0], [0.0, 0.5, 0.0]], dtype=torch.float64)
-    f = torch.tensor([[0, 1, 2]])
+    corners = torch.tensor([[-0.5, -0.45, 0.0], [0.45, -0.4, 0.0], [0.0, 0.5, 0.0]], dtype=torch.float64)
+    base, f = subdivided_triangle(corners, segments)
     right = torch.zeros((1, 32, 32, 1), dtype=torch.float64)
     right[:, :, 16:] = 1.0  # loss: coverage of the right half of the picture
 
@@ -94,7 +111,8 @@ def test_translated_triangle_changes_coverage_and_gradient_sign(backend):
     # the antialiased mask's total is close to the exact projected area
     full = float(render(base, f, cams, kind="mask", backend=backend).sum())
     hard = float(render(base, f, cams, kind="mask", antialias=False, backend=backend).sum())
-    area = 0.5 * abs(np.cross((base[1] - base[0]).numpy()[:2], (base[2] - base[0]).numpy()[:2])) / px ** 2
+    e1, e2 = (corners[1] - corners[0]).numpy(), (corners[2] - corners[0]).numpy()
+    area = 0.5 * abs(e1[0] * e2[1] - e1[1] * e2[0]) / px ** 2
     assert abs(full - area) < abs(hard - area) + 1.0 and abs(full - area) < 0.05 * area
 
 

@@ -66,6 +66,23 @@ def render(verts: torch.Tensor, faces: torch.Tensor, cams, *, kind: str = "shade
     return img
 
 
+def interpolate(attr: torch.Tensor, verts: torch.Tensor, faces: torch.Tensor, cams, *,
+                raster: Raster | None = None, backend: str = "auto") -> torch.Tensor:
+    """(B, H, W, C) perspective-correct interpolation of per-vertex ``attr`` (N, C) at every
+    pixel's visible surface point, differentiable w.r.t. ``attr`` and ``verts``; background 0.
+
+    Generic (plain torch on every backend); the renders above use fused kernels instead.
+    """
+    verts, faces, raster, _ = _prepare(verts, faces, cams, raster, backend)
+    if attr.ndim != 2 or len(attr) != len(verts):
+        raise RenderError(f"attr must be (N, C) with N = {len(verts)} vertices, got {tuple(attr.shape)}")
+    index, face, bary, _ = torch_path.barycentrics_torch(verts, faces, raster.mvp, raster.tri_id)
+    val = (bary.to(attr.dtype)[:, :, None] * attr[faces.long()[face]]).sum(1)
+    nb, height, width = raster.tri_id.shape
+    out = torch.zeros((nb * height * width, attr.shape[1]), dtype=attr.dtype, device=attr.device)
+    return out.index_put((index,), val).view(nb, height, width, -1)
+
+
 def _check_target(target: torch.Tensor, raster: Raster, channels: int = 3) -> torch.Tensor:
     shape = (len(raster.tri_id), raster.height, raster.width, channels)
     if not isinstance(target, torch.Tensor) or tuple(target.shape) != shape:

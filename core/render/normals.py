@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import torch
-from numba import njit, prange
+from numba import prange
 
 from .jit import kernel
 from .geometry import NORMAL_EPS

@@ -59,8 +59,8 @@ def _neighbours_numpy(f: np.ndarray) -> np.ndarray:
 
 def face_neighbours(faces: torch.Tensor) -> torch.Tensor:
     """(M, 3) int64 face across each edge (-1: boundary / non-manifold), on faces' device."""
-    return _cached(faces, "nbr", lambda f: torch.from_numpy(_neighbours_numpy(f).astype(np.int64))
-                   ).to(faces.device)
+    return _cached(faces, "nbr", lambda f: torch.from_numpy(_neighbours_numpy(f).astype(np.int64)
+                                                            ).to(faces.device))
 
 
 def face_neighbours_int32(faces: torch.Tensor) -> np.ndarray:
