@@ -175,7 +175,7 @@ def test_numba_and_torch_backends_agree():
         x = v.clone().requires_grad_(True)
         loss = render_loss(x, f, cams, target, raster=r, backend=be)
         loss.backward()
-        res.append((float(loss), x.grad))
+        res.append((float(loss.detach()), x.grad))
     assert abs(res[0][0] - res[1][0]) < 1e-12
     torch.testing.assert_close(res[0][1], res[1][1], rtol=1e-9, atol=1e-12)
 
