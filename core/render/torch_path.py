@@ -1,36 +1,46 @@
 """Plain-torch implementation of every renderer op: the reference for tests and benchmarks,
 and the backend for CUDA tensors.
 
-Visibility is a z-buffer by ``scatter_reduce(amin)`` on packed (float32 depth bits, face id)
-int64 keys, so the nearest face wins and ties go to the smaller id, exactly like the numba
-rasteriser. Everything after visibility is differentiable torch code; autograd does the backward.
+Everything is vectorised over views and pixels (no per-view or per-pixel Python loop; views
+are processed in groups only to bound memory). Visibility is one z-buffer for all B views by
+``scatter_reduce(amin)`` on packed (float32 depth bits << 32 | face id) int64 keys, so the
+nearest face wins and ties go to the smaller id, exactly like the numba rasteriser (same
+float64 coverage arithmetic). Everything after visibility is differentiable torch code;
+autograd does the backward.
 """
 from __future__ import annotations
 
 import torch
 
-from .geometry import normalize, screen_coords
+from .geometry import normalize
 from .sh import shade_normals
 
-_MAX_CANDIDATES = 1 << 23  # pixel candidates per chunk of faces (memory bound)
+_MAX_CANDIDATES = 1 << 22
+"""(pixel, face) candidates expanded at once (memory bound: ~30 bytes of temporaries each)."""
+_MAX_FACE_VIEWS = 1 << 22
+"""face x view setups held at once; views are processed in groups of at most this many."""
 _KEY_BACKGROUND = torch.iinfo(torch.int64).max
 
 
-def _face_setup(faces: torch.Tensor, sx, sy, w, z, width: int, height: int):
-    """Per-face screen data of the faces that can cover a pixel centre (float64)."""
-    f = faces.long()
-    ax, ay, aw = sx[f], sy[f], w[f]
-    ok = ((aw > 0) & (z[f] >= -aw)).all(1)  # all vertices in front of the near plane
-    x0, y0, x1, y1, x2, y2 = ax[:, 0], ay[:, 0], ax[:, 1], ay[:, 1], ax[:, 2], ay[:, 2]
-    area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
-    ok &= (area != 0) & torch.isfinite(area)
-    c0 = torch.ceil(ax.min(1).values - 0.5).clamp(0, width)
-    c1 = torch.floor(ax.max(1).values - 0.5).clamp(-1, width - 1)
-    r0 = torch.ceil(ay.min(1).values - 0.5).clamp(0, height)
-    r1 = torch.floor(ay.max(1).values - 0.5).clamp(-1, height - 1)
-    nx, ny = (c1 - c0 + 1).clamp(min=0), (r1 - r0 + 1).clamp(min=0)
-    count = torch.where(ok, nx * ny, torch.zeros_like(nx)).long()
-    return f, ax, ay, aw, area, c0.long(), r0.long(), nx.long(), count
+def project(verts: torch.Tensor, mvp: torch.Tensor, width: int, height: int
+            ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Exact float64 (sx, sy, w, z), each (B, N), of (N, 3) verts under (B, 4, 4) mvp: the
+    arithmetic order of ``geometry.screen_coords`` and the numba rasteriser, all views at once."""
+    v = verts.detach().to(torch.float64)
+    vx, vy, vz = v[:, 0], v[:, 1], v[:, 2]
+    m = mvp.to(torch.float64)
+
+    def row(r: int) -> torch.Tensor:
+        return ((m[:, r, 0, None] * vx + m[:, r, 1, None] * vy) + m[:, r, 2, None] * vz) + m[:, r, 3, None]
+
+    x, y, z, w = row(0), row(1), row(2), row(3)
+    return (x / w + 1.0) * (0.5 * width), (1.0 - y / w) * (0.5 * height), w, z
+
+
+def _view_groups(n_views: int, n_faces: int):
+    step = max(1, _MAX_FACE_VIEWS // max(n_faces, 1))
+    for b0 in range(0, n_views, step):
+        yield b0, min(n_views, b0 + step)
 
 
 def _edge(fa, fb, xa, ya, xb, yb, px, py):
@@ -43,58 +53,76 @@ def _edge(fa, fb, xa, ya, xb, yb, px, py):
     return torch.where(swap, -e, e), ~swap
 
 
+def _live_faces(f: torch.Tensor, sx, sy, w, z, width: int, height: int):
+    """Screen data of the (view, face) pairs of a view group that cover a pixel-centre box:
+    (view in group, face, x (L, 3), y (L, 3), 1/w (L, 3), area, c0, r0, nx, count), float64."""
+    ax, ay, aw = sx[:, f], sy[:, f], w[:, f]  # (G, M, 3)
+    ok = ((aw > 0) & (z[:, f] >= -aw)).all(-1)  # all vertices in front of the near plane
+    x0, y0, x1, y1, x2, y2 = ax[..., 0], ay[..., 0], ax[..., 1], ay[..., 1], ax[..., 2], ay[..., 2]
+    area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
+    ok &= (area != 0) & torch.isfinite(area)
+    c0 = torch.ceil(ax.min(-1).values - 0.5).clamp(0, width)
+    c1 = torch.floor(ax.max(-1).values - 0.5).clamp(-1, width - 1)
+    r0 = torch.ceil(ay.min(-1).values - 0.5).clamp(0, height)
+    r1 = torch.floor(ay.max(-1).values - 0.5).clamp(-1, height - 1)
+    nx, ny = (c1 - c0 + 1).clamp(min=0), (r1 - r0 + 1).clamp(min=0)
+    count = torch.where(ok, nx * ny, torch.zeros_like(nx)).reshape(-1)
+    live = torch.nonzero(count > 0).squeeze(1)
+    m = f.shape[0]
+    return (live // m, live % m, ax.reshape(-1, 3)[live], ay.reshape(-1, 3)[live],
+            aw.reshape(-1, 3)[live].reciprocal(), area.reshape(-1)[live], c0.reshape(-1)[live].long(),
+            r0.reshape(-1)[live].long(), nx.reshape(-1)[live].long(), count[live].long())
+
+
 def rasterize_torch(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor, width: int,
                     height: int) -> tuple[torch.Tensor, torch.Tensor]:
     """(tri_id int32 (B, H, W), depth float32 (B, H, W), +inf background)."""
     dev = verts.device
-    nb = len(mvp)
-    tri = torch.full((nb, height, width), -1, dtype=torch.int32, device=dev)
-    depth = torch.full((nb, height, width), float("inf"), dtype=torch.float32, device=dev)
-    if len(faces) == 0:
-        return tri, depth
-    for b in range(nb):
-        sx, sy, w, z = screen_coords(verts, mvp[b], width, height)
-        f, ax, ay, aw, area, c0, r0, nx, count = _face_setup(faces, sx, sy, w, z, width, height)
-        keys = torch.full((height * width,), _KEY_BACKGROUND, dtype=torch.int64, device=dev)
-        live = torch.nonzero(count > 0).squeeze(1)
-        csum = torch.cumsum(count[live], 0)
-        start = 0
-        while start < len(live):
+    nb, hw = len(mvp), height * width
+    keys = torch.full((nb * hw,), _KEY_BACKGROUND, dtype=torch.int64, device=dev)
+    f = faces.long()
+    for g0, g1 in _view_groups(nb if len(f) else 0, len(f)):
+        sx, sy, w, z = project(verts, mvp[g0:g1], width, height)
+        lb, lf, xs, ys, iw, area, c0, r0, nx, count = _live_faces(f, sx, sy, w, z, width, height)
+        del sx, sy, w, z
+        fvs = f[lf]
+        csum = torch.cumsum(count, 0)
+        start, n_live = 0, len(count)
+        while start < n_live:
             base = int(csum[start - 1]) if start else 0
-            stop = int(torch.searchsorted(csum, base + _MAX_CANDIDATES, right=True))
-            stop = max(stop, start + 1)
-            fid = live[start:stop]
-            cnt = count[fid]
-            rep = torch.repeat_interleave(fid, cnt)
-            first = torch.cumsum(cnt, 0) - cnt
-            k = torch.arange(len(rep), device=dev) - torch.repeat_interleave(first, cnt)
-            col = c0[rep] + k % nx[rep]
-            row = r0[rep] + k // nx[rep]
+            stop = max(int(torch.searchsorted(csum, base + _MAX_CANDIDATES, right=True)), start + 1)
+            cnt = count[start:stop]
+            rep = torch.repeat_interleave(torch.arange(start, stop, device=dev), cnt)
+            k = torch.arange(len(rep), device=dev) - (csum[rep] - count[rep] - base)
+            nxr = nx[rep]
+            col = c0[rep] + k % nxr
+            row = r0[rep] + k // nxr
             px, py = col.to(torch.float64) + 0.5, row.to(torch.float64) + 0.5
-            fv, xs, ys = f[rep], ax[rep], ay[rep]
-            s = area[rep] > 0
+            fv, x, y, ar = fvs[rep], xs[rep], ys[rep], area[rep]
+            s = ar > 0
             inside = torch.ones_like(s)
             lam = []
             for e in range(3):
                 a, c = e, (e + 1) % 3
-                ev, tie = _edge(fv[:, a], fv[:, c], xs[:, a], ys[:, a], xs[:, c], ys[:, c], px, py)
+                ev, tie = _edge(fv[:, a], fv[:, c], x[:, a], y[:, a], x[:, c], y[:, c], px, py)
                 es = torch.where(s, ev, -ev)
                 inside &= (es > 0) | ((es == 0) & tie)
                 lam.append(ev)
-            ar = area[rep]
-            iw = aw[rep].reciprocal()
+            iwr = iw[rep]
             # lam[e] belongs to the vertex opposite edge e, i.e. vertex (e + 2) % 3
-            inv_w = ((lam[1] * iw[:, 0] + lam[2] * iw[:, 1]) + lam[0] * iw[:, 2]) / ar
+            inv_w = ((lam[1] * iwr[:, 0] + lam[2] * iwr[:, 1]) + lam[0] * iwr[:, 2]) / ar
             inside &= inv_w > 0
-            d32 = (1.0 / inv_w).to(torch.float32)
-            key = (d32.view(torch.int32).to(torch.int64) << 32) | rep
-            pix = (row * width + col)[inside]
-            keys.scatter_reduce_(0, pix, key[inside], reduce="amin")
+            sel = torch.nonzero(inside).squeeze(1)
+            d32 = (1.0 / inv_w[sel]).to(torch.float32)
+            key = (d32.view(torch.int32).to(torch.int64) << 32) | lf[rep[sel]]
+            pix = (lb[rep[sel]] + g0) * hw + row[sel] * width + col[sel]
+            keys.scatter_reduce_(0, pix, key, reduce="amin")
             start = stop
-        hit = keys != _KEY_BACKGROUND
-        tri[b].view(-1)[hit] = (keys[hit] & 0xFFFFFFFF).to(torch.int32)
-        depth[b].view(-1)[hit] = (keys[hit] >> 32).to(torch.int32).view(torch.float32)
-    return tri, depth
+    hit = keys != _KEY_BACKGROUND
+    tri = torch.where(hit, keys & 0xFFFFFFFF, torch.full_like(keys, -1)).to(torch.int32)
+    depth = torch.where(hit, (keys >> 32).to(torch.int32).view(torch.float32),
+                        torch.full((1,), float("inf"), device=dev))
+    return tri.view(nb, height, width), depth.view(nb, height, width)
 
 
 def pixel_ndc(index: torch.Tensor, width: int, height: int, dtype) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -105,6 +133,20 @@ def pixel_ndc(index: torch.Tensor, width: int, height: int, dtype) -> tuple[torc
     x = (c.to(dtype) + 0.5) * (2.0 / width) - 1.0
     y = 1.0 - (r.to(dtype) + 0.5) * (2.0 / height)
     return b, x, y
+
+
+def clip_xyw(verts: torch.Tensor, mvp: torch.Tensor, b: torch.Tensor, fv: torch.Tensor
+             ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Clip x, y, w (P, 3) of the vertices ``fv`` (P, 3) in views ``b`` (P,) (elementwise:
+    no per-pixel 4x4 matrices); differentiable w.r.t. verts, in mvp's dtype."""
+    v = verts[fv]  # (P, 3, 3)
+    vx, vy, vz = v[..., 0], v[..., 1], v[..., 2]
+
+    def row(r: int) -> torch.Tensor:
+        m = mvp[:, r][b]  # (P, 4)
+        return ((m[:, 0:1] * vx + m[:, 1:2] * vy) + m[:, 2:3] * vz) + m[:, 3:4]
+
+    return row(0), row(1), row(3)
 
 
 def barycentrics_torch(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor,
@@ -121,19 +163,16 @@ def barycentrics_torch(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tens
     index = torch.nonzero(flat >= 0).squeeze(1)
     face = flat[index].long()
     b, x, y = pixel_ndc(index, width, height, verts.dtype)
-    m = mvp.to(verts.dtype)[b]  # (P, 4, 4)
-    fv = faces.long()[face]  # (P, 3)
-    v = verts[fv]  # (P, 3, 3)
-    clip = torch.einsum("prk,pik->pir", m[:, (0, 1, 3), :3], v) + m[:, None, (0, 1, 3), 3]
-    u = clip[..., 0] - x[:, None] * clip[..., 2]
-    t = clip[..., 1] - y[:, None] * clip[..., 2]
+    cx, cy, cw = clip_xyw(verts, mvp.to(verts.dtype), b, faces.long()[face])
+    u = cx - x[:, None] * cw
+    t = cy - y[:, None] * cw
     beta = torch.stack([u[:, 1] * t[:, 2] - u[:, 2] * t[:, 1],
                         u[:, 2] * t[:, 0] - u[:, 0] * t[:, 2],
                         u[:, 0] * t[:, 1] - u[:, 1] * t[:, 0]], 1)
     s = beta.sum(1, keepdim=True)
     tiny = torch.finfo(verts.dtype).tiny
     s = torch.where(s.abs() < tiny, torch.full_like(s, tiny), s)
-    return index, face, beta * (1.0 / s), clip[..., 2]
+    return index, face, beta * (1.0 / s), cw
 
 
 def shade_torch(verts: torch.Tensor, faces: torch.Tensor, vnormals: torch.Tensor,
@@ -159,23 +198,21 @@ def face_facing(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor, wid
     plane); same float64 arithmetic as the numba rasteriser."""
     f = faces.long()
     out = torch.empty((len(mvp), len(f)), dtype=torch.int8, device=verts.device)
-    for b in range(len(mvp)):
-        sx, sy, w, z = screen_coords(verts, mvp[b], width, height)
-        x, y = sx[f], sy[f]
-        area = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (y[:, 1] - y[:, 0]) * (x[:, 2] - x[:, 0])
-        ok = ((w[f] > 0) & (z[f] >= -w[f])).all(1)
-        out[b] = torch.where(ok, torch.sign(area), torch.zeros_like(area)).to(torch.int8)
+    for g0, g1 in _view_groups(len(mvp), len(f)):
+        sx, sy, w, z = project(verts, mvp[g0:g1], width, height)
+        x, y = sx[:, f], sy[:, f]
+        area = (x[..., 1] - x[..., 0]) * (y[..., 2] - y[..., 0]) - (y[..., 1] - y[..., 0]) * (x[..., 2] - x[..., 0])
+        ok = ((w[:, f] > 0) & (z[:, f] >= -w[:, f])).all(-1)
+        out[g0:g1] = torch.where(ok, torch.sign(area), torch.zeros_like(area)).to(torch.int8)
     return out
 
 
-def _face_screen(verts, f_all, m, fidx, width, height):
-    """Screen x, y (P, 3) of faces ``fidx`` (P,) under per-pair matrices m (P, 4, 4); ok (P,)."""
-    v = verts[f_all[fidx]]
-    clip = torch.einsum("prk,pik->pir", m[:, (0, 1, 3), :3], v) + m[:, None, (0, 1, 3), 3]
-    w = clip[..., 2]
+def _face_screen(verts, f_all, mvp, b, face, width, height):
+    """Screen x, y (P, 3) of faces ``face`` (P,) in views ``b`` (P,); ok (P,): all w > 0."""
+    x, y, w = clip_xyw(verts, mvp, b, f_all[face])
     ws = torch.where(w > 0, w, torch.ones_like(w))
-    sx = (clip[..., 0] / ws + 1.0) * (0.5 * width)
-    sy = (1.0 - clip[..., 1] / ws) * (0.5 * height)
+    sx = (x / ws + 1.0) * (0.5 * width)
+    sy = (1.0 - y / ws) * (0.5 * height)
     return sx, sy, (w > 0).all(1)
 
 
@@ -204,19 +241,58 @@ MAX_WALK = 64
 WALK_DEPTH_RATIO = 1.01
 
 
+def _walk(vd, f_all, nbr, facing, m64, bi, cur, near_a, walk, fixed, p0, vertical, width, height):
+    """Silhouette edge code (face * 3 + edge, -1 for none) of every pair (no gradient).
+
+    The walk across sub-pixel faces works on the shrinking set of still-walking pairs (index
+    ``act`` into the pair arrays), so each step costs only what is still alive."""
+    code = torch.full_like(cur, -1)
+    sx, sy, ok = _face_screen(vd, f_all, m64, bi, cur, width, height)
+    t_all, steep = _crossings(sx, sy, vertical, fixed, p0)
+    e, t, alive = _pick(t_all, (t_all >= 0) & (t_all <= 1), near_a)
+    act = torch.nonzero(alive & ok).squeeze(1)
+    cur, e, t, steep = cur[act], e[act], t[act], steep[act]
+    for _ in range(MAX_WALK):
+        if len(act) == 0:
+            break
+        b = bi[act]
+        n = nbr[cur, e]
+        sil = (n < 0) | (facing[b, n.clamp(min=0)] != facing[b, cur])
+        good = sil & steep.gather(1, e[:, None])[:, 0]
+        code[act[good]] = (cur * 3 + e)[good]
+        keep = torch.nonzero(~sil & walk[act]).squeeze(1)
+        if len(keep) == 0:
+            break
+        act, cur, e, t, n, b = act[keep], cur[keep], e[keep], t[keep], n[keep], b[keep]
+        fx, q0, na = fixed[act], p0[act], near_a[act]
+        ia, ib = f_all[cur, e], f_all[cur, (e + 1) % 3]
+        sx, sy, ok = _face_screen(vd, f_all, m64, b, n, width, height)
+        t_all, steep = _crossings(sx, sy, vertical, fx, q0)
+        fk = f_all[n]
+        fk1 = fk.roll(-1, 1)
+        came = ((fk == ia[:, None]) & (fk1 == ib[:, None])) | ((fk == ib[:, None]) & (fk1 == ia[:, None]))
+        ahead = torch.where(na[:, None], t_all >= t[:, None], t_all <= t[:, None])
+        e2, t2, found = _pick(t_all, (t_all >= 0) & (t_all <= 1) & ~came & ahead, na)
+        keep = torch.nonzero(found & ok).squeeze(1)
+        act, cur, e, t, steep = act[keep], n[keep], e2[keep], t2[keep], steep[keep]
+    return code
+
+
 def antialias_torch(color: torch.Tensor, verts: torch.Tensor, faces: torch.Tensor,
                     nbr: torch.Tensor, mvp: torch.Tensor, tri_id: torch.Tensor,
                     depth: torch.Tensor) -> torch.Tensor:
     """nvdiffrast-style analytic antialiasing of (B, H, W, C) ``color``; the rule of
     ``antialias.py`` (silhouette edges by facing, one pair direction per edge, the walk across
-    sub-pixel faces towards background or a clearly farther surface) in vectorised torch."""
+    sub-pixel faces towards background or a clearly farther surface) in vectorised torch: all
+    pixel pairs of all views at once, the walk stepping all still-walking pairs together."""
     nb, height, width, nc = color.shape
     out = color
     dt = verts.dtype
     f_all = faces.long()
     nbr = nbr.long()
     facing = face_facing(verts, faces, mvp, width, height)
-    vd = verts.detach()
+    vd = verts.detach().to(torch.float64)
+    m64, mdt = mvp.to(torch.float64), mvp.to(dt)
     for axis in (2, 1):  # horizontal pairs (along W), then vertical pairs (along H)
         vertical = axis == 1
         ida = tri_id.narrow(axis, 0, tri_id.shape[axis] - 1)
@@ -230,43 +306,19 @@ def antialias_torch(color: torch.Tensor, verts: torch.Tensor, faces: torch.Tenso
         near_a = (fb < 0) | ((fa >= 0) & ((da < db) | ((da == db) & (fa < fb))))
         walk = torch.where(near_a, (fb < 0) | (db > da * WALK_DEPTH_RATIO),
                            (fa < 0) | (da > db * WALK_DEPTH_RATIO))
-        fixed = (ci if vertical else ri).to(dt) + 0.5
-        p0 = (ri if vertical else ci).to(dt) + 0.5
-        m = mvp.to(dt)[bi]
+        fixed = (ci if vertical else ri).to(torch.float64) + 0.5
+        p0 = (ri if vertical else ci).to(torch.float64) + 0.5
         with torch.no_grad():
             cur = torch.where(near_a, fa, fb)
-            sx, sy, ok = _face_screen(vd, f_all, m, cur, width, height)
-            t_all, steep = _crossings(sx, sy, vertical, fixed, p0)
-            e, t, alive = _pick(t_all, (t_all >= 0) & (t_all <= 1), near_a)
-            alive &= ok
-            code = torch.full_like(cur, -1)
-            for _ in range(MAX_WALK):
-                n = nbr[cur, e]
-                sil = (n < 0) | (facing[bi, n.clamp(min=0)] != facing[bi, cur])
-                good = alive & sil & steep.gather(1, e[:, None])[:, 0]
-                code = torch.where(good, cur * 3 + e, code)
-                alive &= ~sil & walk
-                if not bool(alive.any()):
-                    break
-                ia, ib = f_all[cur, e], f_all[cur, (e + 1) % 3]
-                nxt = n.clamp(min=0)
-                sx, sy, ok = _face_screen(vd, f_all, m, nxt, width, height)
-                t_all, steep = _crossings(sx, sy, vertical, fixed, p0)
-                fk = f_all[nxt]
-                fk1 = fk.roll(-1, 1)
-                came = ((fk == ia[:, None]) & (fk1 == ib[:, None])) | ((fk == ib[:, None]) & (fk1 == ia[:, None]))
-                ahead = torch.where(near_a[:, None], t_all >= t[:, None], t_all <= t[:, None])
-                e2, t2, found = _pick(t_all, (t_all >= 0) & (t_all <= 1) & ~came & ahead, near_a)
-                alive &= found & ok
-                cur = torch.where(alive, nxt, cur)
-                e = torch.where(alive, e2, e)
-                t = torch.where(alive, t2, t)
-        valid = code >= 0
-        if not bool(valid.any()):
+            code = _walk(vd, f_all, nbr, facing, m64, bi, cur, near_a, walk, fixed, p0, vertical,
+                         width, height)
+        valid = torch.nonzero(code >= 0).squeeze(1)
+        if len(valid) == 0:
             continue
-        bi, ri, ci, code, fixed, p0, m = bi[valid], ri[valid], ci[valid], code[valid], fixed[valid], p0[valid], m[valid]
+        bi, ri, ci, code = bi[valid], ri[valid], ci[valid], code[valid]
+        fixed, p0 = fixed[valid].to(dt), p0[valid].to(dt)
         occ, e = code // 3, code % 3
-        sx, sy, _ = _face_screen(verts, f_all, m, occ, width, height)
+        sx, sy, _ = _face_screen(verts, f_all, mdt, bi, occ, width, height)
         along, across = (sy, sx) if vertical else (sx, sy)
         j = (e + 1) % 3
         la, lb = along.gather(1, e[:, None])[:, 0], along.gather(1, j[:, None])[:, 0]
