@@ -36,10 +36,12 @@ CACHE = Path(os.environ.get("MICROMESH_CACHE", "/tmp/micromesh_bench_cache"))
 ABLATIONS = {  # the paper's Tab. 2 rows (supplement §3) on the paper preset
     "full": [],
     "no_reparam": ["reparameterize=false", "laplacian_weight=1.0"],
-    "no_progressive": ["progressive=false"],
+    "no_progressive": ["progressive=false"],   # uniform finest level within the budget
     "no_L_iso": ["w_iso=0"],
     "no_L_sv": ["w_sv=0"],
     "chamfer_lod": ["lod_criterion=chamfer"],
+    "interpolate_init": ["init_new_levels=interpolate"],  # paper's init instead of baking
+    "init_zero": ["init_bake=false", "init_new_levels=interpolate"],  # no baking at all
 }
 
 

@@ -337,6 +337,8 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
         scipy_to_torch_sparse(uniform_laplacian(nb, base_u.faces), device=device)
     offsets = Reparameterized(np.zeros((nb, 3)), base_solver, device=device)
     start_level = 0 if s.progressive else s.max_level
+    while cost is not None and start_level > 0 and cost(np.full(nf, start_level)) > budget:
+        start_level -= 1             # no progressive schedule: the finest uniform level in budget
     with timer.phase("init"):
         mm = MicroMesh.flat(base_u, np.full(nf, start_level))
         d0 = _bake(mm, ref_u, bake_dist) if s.init_bake else np.zeros(mm.n_vertices)
@@ -382,8 +384,9 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
         with torch.no_grad():
             P, N, D, _ = geometry()
         mm_old = state["mm"]
-        return MicroMesh(base_u.with_vertices(P.double().cpu().numpy()), N.double().cpu().numpy(),
-                         mm_old.levels, D.double().cpu().numpy(), mm_old.topology)
+        return MicroMesh(base_u.with_vertices(P.detach().double().cpu().numpy()),
+                         N.detach().double().cpu().numpy(), mm_old.levels,
+                         D.detach().double().cpu().numpy(), mm_old.topology)
 
     # ------------------------------------------------------------ events
     events = sorted(set(int(i) for i in s.subdivide_at)) if s.progressive else []
@@ -450,10 +453,23 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
     views = min(s.views_per_iter, len(cams))
     t_loop = time.perf_counter()
     it_done = 0
+    limit = s.time_limit_s
+    stopped_early = False
+    last_event = -10
     for it in range(n_it):
         check_stop()
+        if limit > 0:
+            # Time limit (ours): pull the next subdivision forward once 60% of the time is
+            # spent, end the optimisation at 90% (leaving time for LOD, bounds, output).
+            el = time.perf_counter() - t_start
+            if el > 0.9 * limit and not events:
+                stopped_early = True
+                break
+            if el > 0.6 * limit and events and events[0] > it and it - last_event >= 10:
+                events[0] = it
         while events and it >= events[0]:
             events.pop(0)
+            last_event = it
             if level < s.max_level:
                 with timer.phase("subdivide"):
                     subdivide(it)
@@ -519,6 +535,7 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
             metrics = evaluate(mm, ref_u, s, bounds, device)
     metrics["time_s"] = construct_time
     metrics["iterations"] = it_done
+    metrics["stopped_early"] = stopped_early
     out, b = _to_caller_frame(mm, bounds, norm)
     if progress is not None:
         progress(Progress("done", n_it, n_it, history["loss"][-1] if history["loss"] else 0.0,

@@ -129,3 +129,13 @@ def test_bad_inputs(scene):
         apply_overrides(small(), ["max_level=7"])
     s = apply_overrides(small(), ["subdivide_at=10,20", "reparameterize=false", "w_sv=2"])
     assert s.subdivide_at == (10, 20) and s.reparameterize is False and s.w_sv == 2.0
+
+
+def test_time_limit_compresses_schedule(scene):
+    ref, base = scene
+    s = small(iterations=100000, subdivide_at=(50000, 90000), time_limit_s=4.0,
+              compute_metrics=False)
+    r = construct(ref, base, None, s)
+    assert r.metrics["stopped_early"]
+    assert r.metrics["time_s"] < 8.0
+    assert (r.micromesh.levels == 2).all()             # both events were pulled forward
