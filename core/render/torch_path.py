@@ -15,8 +15,8 @@ import torch
 from .geometry import normalize
 from .sh import shade_normals
 
-_MAX_CANDIDATES = 1 << 22
-"""(pixel, face) candidates expanded at once (memory bound: ~30 bytes of temporaries each)."""
+_MAX_CANDIDATES = 1 << 21
+"""(pixel, face) candidates expanded at once (memory bound: ~400 bytes of temporaries each)."""
 _MAX_FACE_VIEWS = 1 << 22
 """face x view setups held at once; views are processed in groups of at most this many."""
 _KEY_BACKGROUND = torch.iinfo(torch.int64).max
@@ -43,19 +43,15 @@ def _view_groups(n_views: int, n_faces: int):
         yield b0, min(n_views, b0 + step)
 
 
-def _edge(fa, fb, xa, ya, xb, yb, px, py):
-    """Edge function of the face edge a -> b, computed from the lower to the higher vertex id
-    so that the two faces sharing an edge get exactly opposite values; tie flag for E == 0."""
-    swap = fa > fb
-    lx, ly = torch.where(swap, xb, xa), torch.where(swap, yb, ya)
-    hx, hy = torch.where(swap, xa, xb), torch.where(swap, ya, yb)
-    e = (hx - lx) * (py - ly) - (hy - ly) * (px - lx)
-    return torch.where(swap, -e, e), ~swap
-
-
 def _live_faces(f: torch.Tensor, sx, sy, w, z, width: int, height: int):
-    """Screen data of the (view, face) pairs of a view group that cover a pixel-centre box:
-    (view in group, face, x (L, 3), y (L, 3), 1/w (L, 3), area, c0, r0, nx, count), float64."""
+    """Per (view, face) of a view group whose pixel-centre box is not empty: a float64 pack
+    (L, 22) [canonical edges (low x, low y, dx, dy) x 3, edge sign x 3, tie x 3, 1/w x 3, area]
+    and an int64 pack (L, 5) [c0, r0, box width, view in group, face], and counts (L,).
+
+    Edge e (vertices e, e + 1) is evaluated from its lower to its higher vertex id, so the two
+    faces sharing an edge get exactly opposite values (E == 0 belongs to the face that walks it
+    upwards in id: ``tie``); the signs fold in the face's orientation. Multiplying by +-1 is
+    exact, so coverage and depth are bit-identical to the numba rasteriser's."""
     ax, ay, aw = sx[:, f], sy[:, f], w[:, f]  # (G, M, 3)
     ok = ((aw > 0) & (z[:, f] >= -aw)).all(-1)  # all vertices in front of the near plane
     x0, y0, x1, y1, x2, y2 = ax[..., 0], ay[..., 0], ax[..., 1], ay[..., 1], ax[..., 2], ay[..., 2]
@@ -69,9 +65,28 @@ def _live_faces(f: torch.Tensor, sx, sy, w, z, width: int, height: int):
     count = torch.where(ok, nx * ny, torch.zeros_like(nx)).reshape(-1)
     live = torch.nonzero(count > 0).squeeze(1)
     m = f.shape[0]
-    return (live // m, live % m, ax.reshape(-1, 3)[live], ay.reshape(-1, 3)[live],
-            aw.reshape(-1, 3)[live].reciprocal(), area.reshape(-1)[live], c0.reshape(-1)[live].long(),
-            r0.reshape(-1)[live].long(), nx.reshape(-1)[live].long(), count[live].long())
+    lb, lf = live // m, live % m
+    x, y = ax.reshape(-1, 3)[live], ay.reshape(-1, 3)[live]
+    iw = aw.reshape(-1, 3)[live].reciprocal()
+    ar = area.reshape(-1)[live]
+    fv = f[lf]
+    sa = torch.where(ar > 0, 1.0, -1.0).to(torch.float64)
+    cols_e, cols_s, cols_t, sg = [], [], [], []
+    for e in range(3):
+        a, c = e, (e + 1) % 3
+        swap = fv[:, a] > fv[:, c]
+        lx, ly = torch.where(swap, x[:, c], x[:, a]), torch.where(swap, y[:, c], y[:, a])
+        hx, hy = torch.where(swap, x[:, a], x[:, c]), torch.where(swap, y[:, a], y[:, c])
+        cols_e += [lx, ly, hx - lx, hy - ly]
+        sg.append(torch.where(swap, -1.0, 1.0).to(torch.float64))
+        cols_s.append(sg[-1] * sa)
+        cols_t.append((~swap).to(torch.float64))
+    # inv_w = ((lam1 iw0 + lam2 iw1) + lam0 iw2) / area with lam_e = sg_e E_e (vertex opposite e)
+    wq = [sg[1] * iw[:, 0], sg[2] * iw[:, 1], sg[0] * iw[:, 2]]
+    fpack = torch.stack(cols_e + cols_s + cols_t + wq + [ar], 1)
+    ipack = torch.stack([c0.reshape(-1)[live].long(), r0.reshape(-1)[live].long(),
+                         nx.reshape(-1)[live].long(), lb, lf], 1)
+    return fpack, ipack, count[live].long()
 
 
 def rasterize_torch(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor, width: int,
@@ -83,39 +98,36 @@ def rasterize_torch(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor,
     f = faces.long()
     for g0, g1 in _view_groups(nb if len(f) else 0, len(f)):
         sx, sy, w, z = project(verts, mvp[g0:g1], width, height)
-        lb, lf, xs, ys, iw, area, c0, r0, nx, count = _live_faces(f, sx, sy, w, z, width, height)
+        fpack, ipack, count = _live_faces(f, sx, sy, w, z, width, height)
         del sx, sy, w, z
-        fvs = f[lf]
         csum = torch.cumsum(count, 0)
+        first = csum - count
         start, n_live = 0, len(count)
         while start < n_live:
-            base = int(csum[start - 1]) if start else 0
+            base = int(first[start])
             stop = max(int(torch.searchsorted(csum, base + _MAX_CANDIDATES, right=True)), start + 1)
-            cnt = count[start:stop]
-            rep = torch.repeat_interleave(torch.arange(start, stop, device=dev), cnt)
-            k = torch.arange(len(rep), device=dev) - (csum[rep] - count[rep] - base)
-            nxr = nx[rep]
-            col = c0[rep] + k % nxr
-            row = r0[rep] + k // nxr
+            rep = torch.repeat_interleave(torch.arange(start, stop, device=dev), count[start:stop])
+            k = torch.arange(base, base + len(rep), device=dev) - first[rep]
+            ip, fp = ipack[rep], fpack[rep]
+            nxr = ip[:, 2]
+            col = ip[:, 0] + k % nxr
+            row = ip[:, 1] + k // nxr
             px, py = col.to(torch.float64) + 0.5, row.to(torch.float64) + 0.5
-            fv, x, y, ar = fvs[rep], xs[rep], ys[rep], area[rep]
-            s = ar > 0
-            inside = torch.ones_like(s)
-            lam = []
+            inside, lam = None, []
             for e in range(3):
-                a, c = e, (e + 1) % 3
-                ev, tie = _edge(fv[:, a], fv[:, c], x[:, a], y[:, a], x[:, c], y[:, c], px, py)
-                es = torch.where(s, ev, -ev)
-                inside &= (es > 0) | ((es == 0) & tie)
+                lx, ly, dx, dy = fp[:, 4 * e], fp[:, 4 * e + 1], fp[:, 4 * e + 2], fp[:, 4 * e + 3]
+                ev = dx * (py - ly) - dy * (px - lx)  # canonical edge function
+                es = ev * fp[:, 12 + e]
+                ins = (es > 0) | ((es == 0) & (fp[:, 15 + e] > 0))
+                inside = ins if inside is None else inside & ins
                 lam.append(ev)
-            iwr = iw[rep]
-            # lam[e] belongs to the vertex opposite edge e, i.e. vertex (e + 2) % 3
-            inv_w = ((lam[1] * iwr[:, 0] + lam[2] * iwr[:, 1]) + lam[0] * iwr[:, 2]) / ar
+            inv_w = ((lam[1] * fp[:, 18] + lam[2] * fp[:, 19]) + lam[0] * fp[:, 20]) / fp[:, 21]
             inside &= inv_w > 0
             sel = torch.nonzero(inside).squeeze(1)
             d32 = (1.0 / inv_w[sel]).to(torch.float32)
-            key = (d32.view(torch.int32).to(torch.int64) << 32) | lf[rep[sel]]
-            pix = (lb[rep[sel]] + g0) * hw + row[sel] * width + col[sel]
+            ips = ip[sel]
+            key = (d32.view(torch.int32).to(torch.int64) << 32) | ips[:, 4]
+            pix = (ips[:, 3] + g0) * hw + row[sel] * width + col[sel]
             keys.scatter_reduce_(0, pix, key, reduce="amin")
             start = stop
     hit = keys != _KEY_BACKGROUND
