@@ -21,7 +21,7 @@ import numpy as np
 from numba import prange
 
 from .mesh import TriMesh
-from .render.jit import kernel
+from .jit import kernel
 
 LEAF_SIZE = 4
 _STACK = 128          # > tree depth (≈ log2(m / LEAF_SIZE) + a few for duplicate centroids)

@@ -17,7 +17,7 @@ import numpy as np
 import torch
 from numba import njit, prange
 
-from .jit import kernel
+from ..jit import kernel
 from .topology import face_neighbours_int32, faces_int32
 
 

@@ -15,7 +15,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .jit import kernel
+from ..jit import kernel
 from .geometry import NORMAL_EPS
 
 MODE_SHADED, MODE_NORMAL, MODE_DEPTH, MODE_MASK = 0, 1, 2, 3

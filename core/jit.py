@@ -1,7 +1,7 @@
 """``kernel``: numba ``njit`` with an on-disk cache that is keyed by the module's import name.
 
-The same source is imported under several names (``core.render`` in tests and benchmarks,
-``micromesh.core.render`` through the scripts' alias, ``bl_ext.<repo>.micromesh...`` in Blender).
+The same source is imported under several names (``core`` in tests and benchmarks,
+``micromesh.core`` through the scripts' alias, ``bl_ext.<repo>.micromesh...`` in Blender).
 numba's own cache is keyed by file only and stores the import name, so an entry written under
 one name fails to load under another (ModuleNotFoundError). Putting the import name into the
 cache file name keeps one valid entry per name.
