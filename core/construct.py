@@ -97,6 +97,20 @@ def _check_inputs(reference: TriMesh, base: TriMesh) -> None:
         raise ConstructError("the base mesh has more faces than the reference; is it swapped?")
 
 
+def _fixed_levels(base: TriMesh, levels) -> np.ndarray:
+    """The artist's per-face levels, checked (one per base face, integers 0..5) and balanced."""
+    lv = np.asarray(levels)
+    if lv.shape != (base.n_faces,):
+        raise ConstructError(f"levels must hold one value per base face ({base.n_faces}), "
+                             f"got shape {lv.shape}")
+    if lv.size and (not np.all(np.isfinite(lv)) or np.any(lv != np.round(lv))):
+        raise ConstructError("levels must be whole numbers")
+    lv = lv.astype(np.int64)
+    if lv.size and (lv.min() < 0 or lv.max() > 5):
+        raise ConstructError("levels must be within 0..5 (the hardware limit is 5)")
+    return balance_levels(base, lv)
+
+
 def _similarity_matrix(norm: Normalization) -> np.ndarray:
     m = np.eye(4)
     m[:3, :3] *= norm.scale
@@ -283,14 +297,21 @@ def staged_baseline(reference: TriMesh, base: TriMesh, level: int,
 def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
               settings: ConstructSettings,
               progress: Callable[[Progress], None] | None = None,
-              should_stop: Callable[[], bool] | None = None) -> ConstructResult:
+              should_stop: Callable[[], bool] | None = None,
+              levels: np.ndarray | None = None) -> ConstructResult:
     """Build a micro-mesh of ``reference`` on ``base`` (both in the caller's frame).
 
     ``cameras`` (caller's frame) or None for ``settings.n_views`` Fibonacci cameras. Raises
     :class:`ConstructCancelled` within one iteration of ``should_stop()`` returning True.
+
+    ``levels`` (one per base face, 0..5; the artist's per-face override): balanced, then kept
+    fixed. No subdivision schedule and no LOD; the base is frozen (the result's base vertices
+    are the input's); displacements start from projection baking at those levels and are
+    optimised as usual (reparameterisation, L_sv, rendering loss) within the settings' budget.
     """
     s = settings.validate()
     _check_inputs(reference, base)
+    fixed = _fixed_levels(base, levels) if levels is not None else None
     set_threads(s.threads)
     device = _device(s.device)
     torch.manual_seed(s.seed)
@@ -340,9 +361,16 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
     while cost is not None and start_level > 0 and cost(np.full(nf, start_level)) > budget:
         start_level -= 1             # no progressive schedule: the finest uniform level in budget
     with timer.phase("init"):
-        mm = MicroMesh.flat(base_u, np.full(nf, start_level))
-        d0 = _bake(mm, ref_u, bake_dist) if s.init_bake else np.zeros(mm.n_vertices)
-        mm = mm.with_displacements(d0)
+        if fixed is not None:
+            # Fixed levels: always start from projection baking (the "re-bake" the artist
+            # asked for), then refine the displacements only.
+            mm = MicroMesh.flat(base_u, fixed)
+            mm = mm.with_displacements(_bake(mm, ref_u, bake_dist))
+            start_level = int(fixed.max())
+        else:
+            mm = MicroMesh.flat(base_u, np.full(nf, start_level))
+            d0 = _bake(mm, ref_u, bake_dist) if s.init_bake else np.zeros(mm.n_vertices)
+            mm = mm.with_displacements(d0)
 
     state: dict = {}
 
@@ -384,6 +412,9 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
         with torch.no_grad():
             P, N, D, _ = geometry()
         mm_old = state["mm"]
+        if fixed is not None:        # frozen base: exactly the input, not its float32 copy
+            return MicroMesh(base_u, N.detach().double().cpu().numpy(), mm_old.levels,
+                             D.detach().double().cpu().numpy(), mm_old.topology)
         return MicroMesh(base_u.with_vertices(P.detach().double().cpu().numpy()),
                          N.detach().double().cpu().numpy(), mm_old.levels,
                          D.detach().double().cpu().numpy(), mm_old.topology)
@@ -392,6 +423,10 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
     events = sorted(set(int(i) for i in s.subdivide_at)) if s.progressive else []
     last_errors: dict[str, np.ndarray] = {}
     freeze_at = s.base_freeze_iteration
+    if fixed is not None:
+        events, freeze_at = [], 0    # no schedule; displacements only from the first iteration
+        history["events"].append({"iteration": 0, "fixed_levels": True,
+                                  "micro_triangles": micro_triangle_count(fixed)})
     level = start_level
 
     def subdivide(it: int) -> None:
@@ -517,7 +552,9 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
     with timer.phase("finalize"):
         # Schedules shorter than the events, or a non-progressive run: reach ℓmax-bounded levels.
         mm = current_micromesh()
-    if s.lod == "post" and mm.levels.max() > s.min_level:
+    if fixed is not None:
+        pass                          # the artist's levels are kept: no LOD, no budget
+    elif s.lod == "post" and mm.levels.max() > s.min_level:
         with timer.phase("post_lod"):
             mm = _post_process(mm, scene, lod_cams, s, ref_tree, gains_log, cost, budget, check_stop)
     elif cost is not None and cost(mm.levels) > budget:
@@ -536,7 +573,10 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
     metrics["time_s"] = construct_time
     metrics["iterations"] = it_done
     metrics["stopped_early"] = stopped_early
+    metrics["fixed_levels"] = fixed is not None
     out, b = _to_caller_frame(mm, bounds, norm)
+    if fixed is not None:             # the base was frozen: hand back the caller's vertices
+        out = out.with_base_positions(np.asarray(base.vertices, dtype=np.float64))
     if progress is not None:
         progress(Progress("done", n_it, n_it, history["loss"][-1] if history["loss"] else 0.0,
                           metrics.get("psnr", history["psnr"][-1] if history["psnr"] else 0.0), 0.0))

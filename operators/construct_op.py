@@ -62,7 +62,6 @@ def prepare(context, method: str = "auto") -> Prepared:
         levels = writeback.base_levels(base_obj, tri_poly)
         if levels is None:
             raise ValueError(f"base '{base_obj.name}' has no micromesh_level face attribute")
-        method = "projection"
     settings = scene_settings(context.scene)
     cams = None
     if s.use_scene_cameras and s.camera_collection is not None:
@@ -112,7 +111,8 @@ class MICROMESH_OT_construct(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     method: EnumProperty(name="Method", default="AUTO", items=[
-        ("AUTO", "Auto", "The optimiser when available, else projection baking"),
+        ("AUTO", "Auto", "The optimiser when available (it keeps face levels when asked), "
+                         "else projection baking"),
         ("OPTIMIZE", "Optimise", "Differentiable-rendering optimisation (core.construct)"),
         ("PROJECTION", "Projection", "The staged baseline: uniform level, projection baking")])
 

@@ -5,9 +5,9 @@ everything happens in the unit-sphere frame of the reference (``docs/architectur
 result is mapped back like the core does (base positions inverted, directions kept,
 displacements and bounds scaled by 1/scale).
 
-Two methods: the optimiser (``core.construct.construct``) and the staged baseline
-(uniform or given levels, projection baking, tight bounds), which is also what
-"keep face levels" runs: the artist's levels with displacements refined by projection.
+Two methods: the optimiser (``core.construct.construct``), which also runs "keep face
+levels" (the artist's levels fixed, base frozen, displacements baked then optimised), and the
+staged baseline (uniform or given levels, projection baking, tight bounds), an explicit choice.
 """
 from __future__ import annotations
 
@@ -39,21 +39,21 @@ def run(reference: TriMesh, base: TriMesh, cameras: Cameras | None, settings: Co
         method: str = "auto") -> Outcome:
     """Construct a micro-mesh of ``reference`` on ``base`` (both world space).
 
-    ``method``: "optimize" (core.construct), "projection" (the staged baseline at ``levels`` or
-    the uniform ``level``, default ``settings.max_level``) or "auto" (optimize when available
-    and no levels are kept). Raises :class:`PipelineCancelled` (or the core's
+    ``method``: "optimize" (core.construct; with ``levels`` those are kept fixed and only the
+    displacements are optimised), "projection" (the staged baseline at ``levels`` or the
+    uniform ``level``, default ``settings.max_level``) or "auto" (optimize when available). Raises :class:`PipelineCancelled` (or the core's
     ``ConstructCancelled``) when ``should_stop()`` turns true. The result follows the core's
     convention: directions as computed in the unit frame, displacements and bounds in world
     units; ``metrics["shell_volume"]`` is measured in the unit-sphere frame (the paper's).
     """
     t0 = time.perf_counter()
     if method == "auto":
-        method = "optimize" if (has_optimizer() and levels is None) else "projection"
+        method = "optimize" if has_optimizer() else "projection"
     if method == "optimize":
         from ..core.construct import construct
 
         res = construct(reference, base, cameras, settings, progress=progress,
-                        should_stop=should_stop)
+                        should_stop=should_stop, levels=levels)
         mm_w, bounds = res.micromesh, res.bounds
         mm_u = res.micromesh_unit
         metrics = dict(res.metrics or {})

@@ -139,3 +139,33 @@ def test_time_limit_compresses_schedule(scene):
     assert r.metrics["stopped_early"]
     assert r.metrics["time_s"] < 8.0
     assert (r.micromesh.levels == 2).all()             # both events were pulled forward
+
+
+def test_fixed_levels_refine_displacements_only(scene):
+    ref, base = scene
+    from core.microtopology import balance_levels, is_balanced
+
+    rng = np.random.default_rng(7)
+    raw = rng.integers(0, 3, base.n_faces)
+    want = balance_levels(base, raw)
+    assert not np.array_equal(want, raw)          # the balancing is part of what is checked
+    s = small(iterations=30, lod="in_optim", budget_micro_triangles=base.n_faces)
+    start = construct(ref, base, None, small(iterations=0), levels=raw)   # the baked start
+    r = construct(ref, base, None, s, levels=raw)
+    for res in (start, r):
+        np.testing.assert_array_equal(res.micromesh.levels, want)        # kept, no LOD/budget
+        np.testing.assert_array_equal(res.micromesh.base.vertices, base.vertices)  # frozen
+        assert res.metrics["fixed_levels"] and res.metrics["cracks"] == 0
+    assert is_balanced(base, r.micromesh.levels)
+    assert r.metrics["iterations"] == 30 and "subdivide" not in r.timings
+    assert r.metrics["psnr"] > start.metrics["psnr"] + 0.5, (r.metrics["psnr"],
+                                                             start.metrics["psnr"])
+    assert not np.allclose(r.micromesh.displacements, start.micromesh.displacements)
+
+
+def test_fixed_levels_bad_input(scene):
+    ref, base = scene
+    with pytest.raises(ConstructError, match="one value per base face"):
+        construct(ref, base, None, small(), levels=np.ones(base.n_faces + 1, int))
+    with pytest.raises(ConstructError, match="0..5"):
+        construct(ref, base, None, small(), levels=np.full(base.n_faces, 6))

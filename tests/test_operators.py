@@ -242,14 +242,22 @@ def test_face_level_override_kept(scene):
     base.data.polygons.foreach_set("select", sel)
     s = scene.micromesh
     s.level = 1
+    # A short optimiser run: "keep levels" refines the displacements by optimisation now.
+    s.overrides = ("iterations=15 train_resolution=64 views_per_iter=2 eval_views=4 "
+                   "eval_resolution=96 geom_error=false")
+    base_before = bl_mesh.mesh_to_arrays(base).vertices
     assert bpy.ops.micromesh.set_face_level(level=3) == {"FINISHED"}
     assert s.keep_levels
     assert bpy.ops.micromesh.construct() == {"FINISHED"}
-    mm = writeback.load_outcome(bpy.data.objects["rock_micromesh"]).micromesh
+    out = writeback.load_outcome(bpy.data.objects["rock_micromesh"])
+    mm = out.micromesh
+    assert out.method == "optimize" and len(out.history["psnr"]) == 15
+    assert any(e.get("fixed_levels") for e in out.history["events"])
     assert (mm.levels[:10] == 3).all()
     assert mm.levels.min() == 1 and set(np.unique(mm.levels)) <= {1, 2, 3}  # balanced ±1
     stored = writeback.read_attr(base.data, "micromesh_level", dtype=np.int64)
     np.testing.assert_array_equal(stored, mm.levels)
+    np.testing.assert_allclose(bl_mesh.mesh_to_arrays(base).vertices, base_before, atol=1e-6)
 
 
 def test_report_image(scene):
