@@ -169,3 +169,18 @@ def test_fixed_levels_bad_input(scene):
         construct(ref, base, None, small(), levels=np.ones(base.n_faces + 1, int))
     with pytest.raises(ConstructError, match="0..5"):
         construct(ref, base, None, small(), levels=np.full(base.n_faces, 6))
+
+
+def test_large_micro_laplacians_use_cg(scene, monkeypatch):
+    import core.construct as C
+
+    assert C.micro_solver_method(C.SPLU_MAX_MICRO_VERTICES) == "auto"
+    assert C.micro_solver_method(C.SPLU_MAX_MICRO_VERTICES + 1) == "cg"
+    ref, base = scene
+    s = small(iterations=10, subdivide_at=(3,), max_level=1, compute_metrics=False)
+    a = construct(ref, base, None, s)
+    monkeypatch.setattr(C, "SPLU_MAX_MICRO_VERTICES", 0)       # every micro solve by CG
+    b = construct(ref, base, None, s)
+    scale = np.abs(a.micromesh.displacements).max()
+    np.testing.assert_allclose(b.micromesh.displacements, a.micromesh.displacements,
+                               atol=1e-3 * scale)
