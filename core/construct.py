@@ -42,8 +42,9 @@ from .threads import set_threads
 
 # Above this many micro-vertices the micro Laplacian's screened solve uses warm-started CG, not
 # SuperLU: the MMD ordering of splu went from 0.97 s at 133k vertices to 113 s at 164k
-# (icosphere micro-meshes, 2 cores), while one warm CG solve took 13.5 ms against 134 ms for an
-# splu solve at 164k (report of the keep-levels task; /tmp/prof_solver.py-style measurements).
+# (uniform icosphere micro-meshes, 2 cores), while one warm CG solve took 13.5 ms against 134 ms
+# for an splu solve at 164k. Below 100k splu is cheap (0.74 s at 106k) and slightly faster per
+# iteration (72 vs 92 ms at 41k in a construct run), so it stays the default there.
 SPLU_MAX_MICRO_VERTICES = 100_000
 
 
