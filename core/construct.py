@@ -40,19 +40,6 @@ from .settings import ConstructSettings, preset, to_dict
 from .threads import set_threads
 
 
-# Above this many micro-vertices the micro Laplacian's screened solve uses warm-started CG, not
-# SuperLU: the MMD ordering of splu went from 0.97 s at 133k vertices to 113 s at 164k
-# (uniform icosphere micro-meshes, 2 cores), while one warm CG solve took 13.5 ms against 134 ms
-# for an splu solve at 164k. Below 100k splu is cheap (0.74 s at 106k) and slightly faster per
-# iteration (72 vs 92 ms at 41k in a construct run), so it stays the default there.
-SPLU_MAX_MICRO_VERTICES = 100_000
-
-
-def micro_solver_method(n_vertices: int) -> str:
-    """The ScreenedSolver method for a micro Laplacian of ``n_vertices`` (see the constant)."""
-    return "auto" if n_vertices <= SPLU_MAX_MICRO_VERTICES else "cg"
-
-
 class ConstructError(ValueError):
     """The inputs of a construction cannot be used."""
 
@@ -391,7 +378,7 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
         """(Re)create the displacement parameter, micro Laplacian and L_sv groups."""
         t = mm_new.topology
         Lm = uniform_laplacian(t.n_vertices, t.triangles)
-        solver = ScreenedSolver(Lm, s.lambda_micro, method=micro_solver_method(t.n_vertices)) \
+        solver = ScreenedSolver(Lm, s.lambda_micro) \
             if s.reparameterize else None
         state["disp"] = Reparameterized(mm_new.displacements, solver, device=device)
         state["micro_L"] = None if s.reparameterize else scipy_to_torch_sparse(Lm, device=device)

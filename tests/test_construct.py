@@ -172,14 +172,12 @@ def test_fixed_levels_bad_input(scene):
 
 
 def test_large_micro_laplacians_use_cg(scene, monkeypatch):
-    import core.construct as C
+    import core.laplacian as lap
 
-    assert C.micro_solver_method(C.SPLU_MAX_MICRO_VERTICES) == "auto"
-    assert C.micro_solver_method(C.SPLU_MAX_MICRO_VERTICES + 1) == "cg"
     ref, base = scene
     s = small(iterations=10, subdivide_at=(3,), max_level=1, compute_metrics=False)
     a = construct(ref, base, None, s)
-    monkeypatch.setattr(C, "SPLU_MAX_MICRO_VERTICES", 0)       # every micro solve by CG
+    monkeypatch.setattr(lap, "SPLU_MAX_VERTICES", 0)       # every screened solve by CG
     b = construct(ref, base, None, s)
     scale = np.abs(a.micromesh.displacements).max()
     np.testing.assert_allclose(b.micromesh.displacements, a.micromesh.displacements,

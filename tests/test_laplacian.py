@@ -87,6 +87,19 @@ def test_bad_input():
         S.solve_torch(torch.zeros(6, dtype=torch.int64))
 
 
+def test_auto_uses_splu_for_small_and_cg_for_large(monkeypatch):
+    import core.laplacian as lap
+
+    v, f = _bumpy(1)
+    assert from_mesh(len(v), f, 9.0).method == "splu"
+    monkeypatch.setattr(lap, "SPLU_MAX_VERTICES", len(v) - 1)
+    S = from_mesh(len(v), f, 9.0)
+    assert S.method == "cg"
+    b = np.random.default_rng(0).normal(size=len(v))
+    ref = from_mesh(len(v), f, 9.0, method="splu").solve(b)
+    assert np.abs(S.solve(b) - ref).max() < 1e-8
+
+
 @pytest.mark.parametrize("method", ["splu", "cg"])
 @pytest.mark.parametrize("kind", ["uniform", "cotangent"])
 def test_solver_matches_dense(method, kind):
