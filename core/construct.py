@@ -35,7 +35,7 @@ from .metrics import PhaseTimer, crack_edges, geometric_error, isotropy, psnr, s
 from .micromesh import MicroMesh
 from .microtopology import balance_levels
 from .optim import Reparameterized, UniformAdam, clip_gradients
-from .render import pixel_error, rasterize, reference_images, render
+from .render import pixel_error, rasterize, reference_images, render, warm_up
 from .settings import ConstructSettings, preset, to_dict
 from .threads import set_threads
 
@@ -321,6 +321,9 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
     history: dict[str, list] = {"iteration": [], "loss": [], "render": [], "psnr": [],
                                 "events": []}
     gains_log: dict[int, np.ndarray] = {}
+    # Compile the renderer's kernels first: a fresh checkout's JIT (about a minute) must not
+    # eat the time limit or distort the ETA.
+    warm_up(device, antialias=s.antialias)
     t_start = time.perf_counter()
 
     def check_stop():
