@@ -102,11 +102,4 @@ class MICROMESH_AP_preferences(bpy.types.AddonPreferences):
 CLASSES = (MICROMESH_OT_install_dependencies, MICROMESH_AP_preferences)
 
 
-def register():
-    for c in CLASSES:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(CLASSES):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

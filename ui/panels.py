@@ -162,11 +162,4 @@ CLASSES = (MICROMESH_PT_main, MICROMESH_PT_base, MICROMESH_PT_cameras, MICROMESH
            MICROMESH_PT_result, MICROMESH_PT_export)
 
 
-def register():
-    for c in CLASSES:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(CLASSES):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)
