@@ -67,18 +67,11 @@ class MICROMESH_OT_make_base(bpy.types.Operator):
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
         name = f"{src.name}_base"
-        old = bpy.data.objects.get(name)
         mesh = bl_mesh.arrays_to_mesh(name, base.vertices, base.faces)
-        if old is not None and old.micromesh_source == src:
-            old_mesh, old.data = old.data, mesh
-            old.matrix_world = ((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1))
-            if old_mesh.users == 0:
-                bpy.data.meshes.remove(old_mesh)
-            obj = old
-        else:
-            obj = bpy.data.objects.new(name, mesh)
-            coll = src.users_collection[0] if src.users_collection else context.scene.collection
-            coll.objects.link(obj)
+        obj, reused = bl_mesh.object_with_mesh(context, name, mesh, src,
+                                               reuse=lambda o: o.micromesh_source == src)
+        if reused:  # the arrays are in world space
+            obj.matrix_world = ((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1))
         obj.micromesh_source = src
         obj.display_type = "WIRE"
         s.source, s.base = src, obj

@@ -145,3 +145,23 @@ def _decimate_temp(temp, target_faces, ratio, symmetry, vertex_group, vertex_gro
         return mesh_to_arrays(temp, depsgraph, world=world)
     finally:
         scene.collection.objects.unlink(temp)
+
+
+def object_with_mesh(context, name: str, mesh: bpy.types.Mesh, source: bpy.types.Object,
+                     reuse) -> tuple[bpy.types.Object, bool]:
+    """The object ``name`` holding ``mesh``; returns (object, reused).
+
+    An existing object of that name for which ``reuse(obj)`` is true gets the new mesh (its old
+    mesh is freed when nothing else uses it); otherwise a new object is linked into the
+    source's first collection (the scene's collection if it has none).
+    """
+    old = bpy.data.objects.get(name)
+    if old is not None and reuse(old):
+        old_mesh, old.data = old.data, mesh
+        if old_mesh.users == 0:
+            bpy.data.meshes.remove(old_mesh)
+        return old, True
+    obj = bpy.data.objects.new(name, mesh)
+    coll = source.users_collection[0] if source.users_collection else context.scene.collection
+    coll.objects.link(obj)
+    return obj, False

@@ -117,17 +117,8 @@ def write_result(context, source: bpy.types.Object, base_obj: bpy.types.Object |
     mesh.color_attributes.active_color = col
     mesh.color_attributes.render_color_index = mesh.color_attributes.active_color_index
 
-    old = bpy.data.objects.get(name)
-    if old is not None and old.get(DATA_KEY) is not None:
-        old_mesh = old.data
-        old.data = mesh
-        if old_mesh.users == 0:
-            bpy.data.meshes.remove(old_mesh)
-        obj = old
-    else:
-        obj = bpy.data.objects.new(name, mesh)
-        coll = source.users_collection[0] if source.users_collection else context.scene.collection
-        coll.objects.link(obj)
+    obj, _ = bl_mesh.object_with_mesh(context, name, mesh, source,
+                                      reuse=lambda o: o.get(DATA_KEY) is not None)
     obj.micromesh_source = source
     obj.micromesh_base = base_obj
     obj[DATA_KEY] = pack(out)
