@@ -1,4 +1,5 @@
-"""Regularisers of the construction: shell volume L_sv, isotropy L_iso, Laplacian smoothing.
+"""Regularisers of the construction: shell volume L_sv (and its exact range form, ours),
+isotropy L_iso, Laplacian smoothing.
 
 All are differentiable torch functions, scale-normalised (ours) by a squared reference
 length ``h`` (the initial mean base edge length in the unit-sphere frame), so that the
@@ -53,6 +54,20 @@ def shell_volume_loss(displacement: torch.Tensor, groups: VertexGroups, h: float
     var = torch.zeros_like(mean).index_add_(0, groups.group, dev) / cnt
     used = groups.count > 0
     return var[used].mean() / (h * h)
+
+
+def shell_range_loss(displacement: torch.Tensor, groups: VertexGroups, h: float = 1.0) -> torch.Tensor:
+    """Mean over base vertices of (max - min) of the displacements in the base faces around
+    it, divided by ``h``: exactly the per-vertex scale of the tight bounds
+    (:func:`core.bounds.tight_bounds`), so its gradient reaches the micro-vertices that set
+    the shell (outliers the variance of :func:`shell_volume_loss` barely sees)."""
+    d = displacement.reshape(-1)
+    vals = d[groups.member]
+    empty = torch.zeros(groups.n_groups, dtype=d.dtype, device=d.device)
+    hi = empty.scatter_reduce(0, groups.group, vals, "amax", include_self=False)
+    lo = empty.scatter_reduce(0, groups.group, vals, "amin", include_self=False)
+    used = groups.count > 0
+    return (hi - lo)[used].mean() / h
 
 
 def isotropy_loss(vertices: torch.Tensor, faces: torch.Tensor, h: float = 1.0) -> torch.Tensor:

@@ -5,7 +5,8 @@ import scipy.sparse as sp
 import torch
 
 from core.losses import (isotropy_loss, laplacian_smoothing_loss, mean_edge_length,
-                         scipy_to_torch_sparse, shell_volume_loss, vertex_groups)
+                         scipy_to_torch_sparse, shell_range_loss, shell_volume_loss,
+                         vertex_groups)
 
 TET_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
 TET_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
@@ -84,3 +85,21 @@ def test_mean_edge_length():
     f = np.array([[0, 1, 2]])
     v = np.array([[0, 0, 0], [3, 0, 0], [0, 4, 0]], float)
     assert mean_edge_length(v, f) == pytest.approx(4.0)
+
+
+def test_shell_range_equals_tight_bounds_scale_and_fd():
+    """The range term is the mean scale of core.bounds.tight_bounds (the metric's shell), and
+    its gradient (away from ties) matches finite differences."""
+    from core.bounds import tight_bounds
+    from core.mesh import TriMesh
+    from core.micromesh import MicroMesh
+
+    mm = MicroMesh.flat(TriMesh(TET_V, TET_F), np.array([2, 1, 2, 2]))
+    rng = np.random.default_rng(1)
+    d = rng.standard_normal(mm.n_vertices)
+    t = mm.topology
+    g = vertex_groups(TET_F, 4, t.face_vertex_ptr, t.face_vertex_idx, t.n_vertices)
+    want = tight_bounds(mm.with_displacements(d)).scale.mean()
+    assert float(shell_range_loss(torch.tensor(d), g)) == pytest.approx(want)
+    assert float(shell_range_loss(torch.tensor(d) * 3, g, h=3.0)) == pytest.approx(want)
+    _fd_check(lambda x: shell_range_loss(x, g, h=0.5), torch.tensor(d), eps=1e-7)
