@@ -10,7 +10,7 @@ the caller's frame. Geometry per iteration::
     D = (I + λ2 Lℓ)^-1 D̄           (micro displacements; Lℓ rebuilt at each subdivision)
     P = V + O;  N = normals(P) (detached)
     X = interp @ P + (interp @ N) * D
-    loss = Φ(X) + w_sv L_sv(D) + w_iso L_iso(P)
+    loss = Φ(X) + w_sv L_sv(D) + w_range L_range(D) + w_iso L_iso(P)
 """
 from __future__ import annotations
 
@@ -29,7 +29,8 @@ from .lod import (chamfer_face_errors, exchange_to_budget, face_error_sums, in_o
                   micro_triangle_count, post_process_lod, relative_gain, roll_back_to_budget,
                   trim_to_budget)
 from .losses import (isotropy_loss, laplacian_smoothing_loss, mean_edge_length,
-                     scipy_to_torch_sparse, shell_volume_loss, vertex_groups)
+                     scipy_to_torch_sparse, shell_range_loss, shell_volume_loss,
+                     vertex_groups)
 from .mesh import Normalization, TriMesh, unit_sphere_normalization
 from .metrics import PhaseTimer, crack_edges, geometric_error, isotropy, psnr, storage_bytes
 from .micromesh import MicroMesh
@@ -526,6 +527,8 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
             loss = s.w_render * l_render
             if s.w_sv > 0:
                 loss = loss + s.w_sv * shell_volume_loss(D, state["groups"])
+            if s.w_range > 0:
+                loss = loss + s.w_range * shell_range_loss(D, state["groups"])
             if s.w_iso > 0 and not frozen:
                 loss = loss + s.w_iso * isotropy_loss(P, F)
             if not s.reparameterize and s.laplacian_weight > 0:
