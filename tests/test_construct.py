@@ -119,6 +119,28 @@ def test_adaptive_lod_and_budget(scene):
     assert 1 in r.gains
 
 
+def test_post_process_lod_with_byte_budget(scene):
+    """Algorithm 2 end to end: uniform optimisation to ℓmax, then roll back to a byte budget
+    between uniform level 1 and 2; the result fits, is balanced and only ever lowers levels."""
+    from core.metrics import storage_bytes
+    from core.microtopology import balance_levels
+
+    ref, base = scene
+    cost = lambda lv: storage_bytes(lv, base.n_vertices)["total"]  # noqa: E731
+    nf = base.n_faces
+    lo, hi = cost(np.full(nf, 1)), cost(np.full(nf, 2))
+    budget = (lo + hi) // 2
+    s = small(iterations=25, subdivide_at=(5, 15), max_level=2, lod="post", min_level=1,
+              budget_bytes=budget)
+    r = construct(ref, base, None, s)
+    lv = r.micromesh.levels
+    assert r.metrics["bytes"] == cost(lv) <= budget
+    assert lv.min() >= 1 and lv.max() == 2 and (lv == 1).any()
+    np.testing.assert_array_equal(balance_levels(base, lv), lv)       # ±1 across every edge
+    assert {1, 2} <= set(r.gains)                   # measured at every level from ℓmin - 1 up
+    assert r.metrics["cracks"] == 0
+
+
 def test_bad_inputs(scene):
     ref, base = scene
     with pytest.raises(ConstructError):
