@@ -21,14 +21,16 @@ def set_threads(n: int | None = None) -> int:
     """Pin torch's and numba's pools to ``n`` threads (default: the usable cores); returns n."""
     n = default_threads() if not n or n < 1 else int(n)
     n = min(n, default_threads())
-    import torch
-
-    if torch.get_num_threads() != n:
-        torch.set_num_threads(n)
+    # numba first: its first call launches numba's OpenMP layer, which resets the OpenMP
+    # thread count that torch shares (torch would silently run on all cores, and its float
+    # reductions would then sum in a different order than on later calls).
     try:
         import numba
 
         numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
     except ImportError:
         pass
+    import torch
+
+    torch.set_num_threads(n)
     return n
