@@ -1,6 +1,11 @@
 """Regularisers of the construction: shell volume L_sv (and its exact range form, ours),
 isotropy L_iso, Laplacian smoothing.
 
+Gathers use ``index_select``, never ``x[idx]``: the backward of advanced indexing
+(an accumulating ``index_put_``) sums in a different order from run to run on several CPU
+threads, which made constructions differ by float32 ulps; ``index_select``'s backward is
+deterministic.
+
 All are differentiable torch functions, scale-normalised (ours) by a squared reference
 length ``h`` (the initial mean base edge length in the unit-sphere frame), so that the
 paper's weights (10 for L_sv, 1 for L_iso) mean the same for every mesh and base resolution.
@@ -48,9 +53,9 @@ def shell_volume_loss(displacement: torch.Tensor, groups: VertexGroups, h: float
     """
     d = displacement.reshape(-1)
     cnt = groups.count.to(d.dtype).clamp_min(1.0)
-    vals = d[groups.member]
+    vals = d.index_select(0, groups.member)
     mean = torch.zeros(groups.n_groups, dtype=d.dtype, device=d.device).index_add_(0, groups.group, vals) / cnt
-    dev = (vals - mean[groups.group]) ** 2
+    dev = (vals - mean.index_select(0, groups.group)) ** 2
     var = torch.zeros_like(mean).index_add_(0, groups.group, dev) / cnt
     used = groups.count > 0
     return var[used].mean() / (h * h)
@@ -62,7 +67,7 @@ def shell_range_loss(displacement: torch.Tensor, groups: VertexGroups, h: float 
     (:func:`core.bounds.tight_bounds`), so its gradient reaches the micro-vertices that set
     the shell (outliers the variance of :func:`shell_volume_loss` barely sees)."""
     d = displacement.reshape(-1)
-    vals = d[groups.member]
+    vals = d.index_select(0, groups.member)
     empty = torch.zeros(groups.n_groups, dtype=d.dtype, device=d.device)
     hi = empty.scatter_reduce(0, groups.group, vals, "amax", include_self=False)
     lo = empty.scatter_reduce(0, groups.group, vals, "amin", include_self=False)
@@ -73,7 +78,7 @@ def shell_range_loss(displacement: torch.Tensor, groups: VertexGroups, h: float 
 def isotropy_loss(vertices: torch.Tensor, faces: torch.Tensor, h: float = 1.0) -> torch.Tensor:
     """L_iso: mean over faces of the (population) variance of the three edge lengths, divided
     by ``h**2`` (as-equilateral-as-possible)."""
-    v = vertices[faces]
+    v = vertices.index_select(0, faces.reshape(-1)).reshape(*faces.shape, -1)
     e = torch.stack([v[:, 1] - v[:, 0], v[:, 2] - v[:, 1], v[:, 0] - v[:, 2]], dim=1)
     lengths = torch.sqrt((e * e).sum(-1) + 1e-20)
     return lengths.var(dim=1, unbiased=False).mean() / (h * h)

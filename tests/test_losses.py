@@ -103,3 +103,34 @@ def test_shell_range_equals_tight_bounds_scale_and_fd():
     assert float(shell_range_loss(torch.tensor(d), g)) == pytest.approx(want)
     assert float(shell_range_loss(torch.tensor(d) * 3, g, h=3.0)) == pytest.approx(want)
     _fd_check(lambda x: shell_range_loss(x, g, h=0.5), torch.tensor(d), eps=1e-7)
+
+
+def test_shell_terms_gradients_do_not_depend_on_memory_layout():
+    """Bitwise-equal gradients for the same displacements at different buffer offsets, on all
+    cores and with more pairs than torch's parallel grain: the construction's
+    reproducibility rests on it (advanced indexing's backward failed this)."""
+    from core.mesh import TriMesh
+    from core.micromesh import MicroMesh
+    from core.primitives import icosphere
+    from core.threads import default_threads, set_threads
+
+    v, f = icosphere(4)
+    mm = MicroMesh.flat(TriMesh(v, f), np.full(len(f), 3))
+    t = mm.topology
+    g = vertex_groups(f, len(v), t.face_vertex_ptr, t.face_vertex_idx, t.n_vertices)
+    assert len(g.member) > 32768
+    d = np.random.default_rng(0).standard_normal(t.n_vertices).astype(np.float32)
+    before = torch.get_num_threads()
+    set_threads(default_threads())
+    try:
+        for loss in (shell_volume_loss, shell_range_loss):
+            grads = []
+            for off in range(8):
+                buf = np.empty(len(d) + 8, np.float32)
+                buf[off:off + len(d)] = d
+                x = torch.from_numpy(buf[off:off + len(d)]).requires_grad_(True)
+                loss(x, g).backward()
+                grads.append(x.grad.clone())
+            assert all(torch.equal(grads[0], gr) for gr in grads[1:]), loss.__name__
+    finally:
+        set_threads(before)
