@@ -125,9 +125,9 @@ PRESETS: dict[str, dict] = {
     "default": dict(iterations=400, subdivide_at=(25, 75, 150, 250), max_level=4,
                     views_per_iter=12, train_resolution=256, lod_resolution=192,
                     lr_base=3e-4, lr_disp=1e-3, w_range=0.03, time_limit_s=285.0),
-    # Slower, closer to the paper on a CPU.
-    "quality": dict(iterations=900, subdivide_at=(50, 150, 300, 500), views_per_iter=6,
-                    train_resolution=256, lod_resolution=256, max_level=4),
+    # Slower, closer to the paper on a CPU (bunny_69k: 45.81 dB in 125 s, default 45.37 dB).
+    "quality": dict(iterations=900, subdivide_at=(50, 150, 300, 500), views_per_iter=12,
+                    train_resolution=256, lod_resolution=256, max_level=4, w_range=0.03),
     # The paper's schedule: 1600 iterations, all 24 views each iteration, ℓmax 4.
     "paper": dict(iterations=1600, subdivide_at=(50, 150, 400, 800), views_per_iter=24,
                   train_resolution=512, lod_resolution=512, max_level=4, freeze_base_at=1200,
