@@ -190,6 +190,17 @@ def _pair_at(q, r, c, code_h, code_v, b, width, height):
     return code_v[b, r, c], r, c, r + 1, c, True, False
 
 
+@njit(inline="always")
+def _l1_pixel(img, target, sign, b, r, c):
+    """|img - target| summed over the channels of one pixel (float64); sign <- its signs."""
+    acc = 0.0
+    for ch in range(img.shape[3]):
+        d = np.float64(img[b, r, c, ch]) - np.float64(target[b, r, c, ch])
+        acc += abs(d)
+        sign[b, r, c, ch] = 1 if d > 0 else (-1 if d < 0 else 0)
+    return acc
+
+
 @kernel(parallel=True)
 def antialias_forward(color, verts, faces, mvp, code_h, code_v, out, target, sign, rowsum, fuse_l1):
     """out <- antialiased color. With ``fuse_l1`` also sign <- sign(out - target) (int8) and
@@ -215,10 +226,7 @@ def antialias_forward(color, verts, faces, mvp, code_h, code_v, out, target, sig
                 for ch in range(nc):
                     out[b, r, c, ch] += alpha * (color[b, rs, cs, ch] - color[b, r, c, ch])
             if fuse_l1:
-                for ch in range(nc):
-                    d = np.float64(out[b, r, c, ch]) - np.float64(target[b, r, c, ch])
-                    acc += abs(d)
-                    sign[b, r, c, ch] = 1 if d > 0 else (-1 if d < 0 else 0)
+                acc += _l1_pixel(out, target, sign, b, r, c)
         rowsum[row] = acc
     return 0
 
@@ -226,15 +234,12 @@ def antialias_forward(color, verts, faces, mvp, code_h, code_v, out, target, sig
 @kernel(parallel=True)
 def l1_forward(img, target, sign, rowsum):
     """sign <- sign(img - target) (int8), rowsum[row] <- sum over the row of |img - target|."""
-    nb, height, width, nc = img.shape
+    nb, height, width = img.shape[:3]
     for row in prange(nb * height):
         b, r = row // height, row % height
         acc = 0.0
         for c in range(width):
-            for ch in range(nc):
-                d = np.float64(img[b, r, c, ch]) - np.float64(target[b, r, c, ch])
-                acc += abs(d)
-                sign[b, r, c, ch] = 1 if d > 0 else (-1 if d < 0 else 0)
+            acc += _l1_pixel(img, target, sign, b, r, c)
         rowsum[row] = acc
     return 0
 

@@ -28,6 +28,16 @@ def _edge(fa, fb, xa, ya, xb, yb, px, py):
     return (xb - xa) * (py - ya) - (yb - ya) * (px - xa), True
 
 
+@njit(inline="always")
+def _screen_area(sc, i0, i1, i2):
+    """(twice the signed screen area, in front of the near plane, facing sign) of a face
+    from projected vertices; the facing sign is 0 for degenerate or clipped faces."""
+    x0, y0, x1, y1, x2, y2 = sc[i0, 0], sc[i0, 1], sc[i1, 0], sc[i1, 1], sc[i2, 0], sc[i2, 1]
+    area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
+    ok = sc[i0, 3] != 0.0 and sc[i1, 3] != 0.0 and sc[i2, 3] != 0.0
+    return area, ok, (0 if not ok else (1 if area > 0 else (-1 if area < 0 else 0)))
+
+
 @kernel()
 def project(verts, m, width, height, sc):
     """sc[i] = (screen x, screen y, 1 / clip w, 1 if in front of the near plane else 0)."""
@@ -59,9 +69,7 @@ def _raster_kernel(verts, faces, nbr, mvp, width, height, scratch, facing, tri, 
             for f in range(faces.shape[0]):
                 i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
                 x0, y0, x1, y1, x2, y2 = sc[i0, 0], sc[i0, 1], sc[i1, 0], sc[i1, 1], sc[i2, 0], sc[i2, 1]
-                area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
-                ok = sc[i0, 3] != 0.0 and sc[i1, 3] != 0.0 and sc[i2, 3] != 0.0
-                fc[f] = 0 if not ok else (1 if area > 0 else (-1 if area < 0 else 0))
+                area, ok, fc[f] = _screen_area(sc, i0, i1, i2)
                 # bounding box of pixel centres first: most small faces cover none
                 c0 = max(math.ceil(min(x0, x1, x2) - 0.5), 0.0)
                 c1 = min(math.floor(max(x0, x1, x2) - 0.5), width - 1.0)
@@ -126,11 +134,7 @@ def silhouette_flags(nbr, fc, tb, fb):
 def face_facing(faces, sc, fc):
     """fc[f] <- sign of the screen area of face f (0: degenerate or crossing the near plane)."""
     for f in range(faces.shape[0]):
-        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
-        x0, y0, x1, y1, x2, y2 = sc[i0, 0], sc[i0, 1], sc[i1, 0], sc[i1, 1], sc[i2, 0], sc[i2, 1]
-        area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
-        ok = sc[i0, 3] != 0.0 and sc[i1, 3] != 0.0 and sc[i2, 3] != 0.0
-        fc[f] = 0 if not ok else (1 if area > 0 else (-1 if area < 0 else 0))
+        fc[f] = _screen_area(sc, faces[f, 0], faces[f, 1], faces[f, 2])[2]
     return 0
 
 
