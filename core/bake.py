@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .checks import as_points, per_point_distance
 from .mesh import TriMesh
 from .threads import default_threads
 
@@ -100,7 +101,7 @@ def nearest_points(points: np.ndarray, reference: TriMesh, *,
     """
     from .closest import closest_point_index  # compiled kernels: imported on first use
 
-    q = _as_points(points, "points")
+    q = as_points(points, "points", BakeError)
     return closest_point_index(reference).query(q, threads=workers)
 
 
@@ -157,16 +158,6 @@ class _RayScene:
         return np.where(np.abs(t64 - t) <= tol, t64, t)
 
 
-# ------------------------------------------------------------------------------ input
-def _as_points(a: np.ndarray, name: str) -> np.ndarray:
-    a = np.asarray(a, dtype=np.float64)
-    if a.ndim != 2 or a.shape[1] != 3:
-        raise BakeError(f"{name} must be (n, 3), got {a.shape}")
-    if not np.isfinite(a).all():
-        raise BakeError(f"{name} contain NaN or infinity")
-    return a
-
-
 def bake_displacements(origins: np.ndarray, directions: np.ndarray, reference: TriMesh, *,
                        max_distance: float | np.ndarray | None = None,
                        threads: int | None = None) -> BakeResult:
@@ -178,21 +169,12 @@ def bake_displacements(origins: np.ndarray, directions: np.ndarray, reference: T
     """
     if not isinstance(reference, TriMesh):
         raise BakeError("reference must be a core.mesh.TriMesh")
-    o = _as_points(origins, "origins")
-    d = _as_points(directions, "directions")
+    o = as_points(origins, "origins", BakeError)
+    d = as_points(directions, "directions", BakeError)
     if o.shape != d.shape:
         raise BakeError(f"origins {o.shape} and directions {d.shape} differ in shape")
     n = len(o)
-    if max_distance is None:
-        maxd = np.full(n, np.inf)
-    else:
-        maxd = np.asarray(max_distance, dtype=np.float64)
-        if maxd.ndim == 0:
-            maxd = np.full(n, float(maxd))
-        if maxd.shape != (n,):
-            raise BakeError(f"max_distance must be a scalar or ({n},), got {maxd.shape}")
-        if np.isnan(maxd).any() or (maxd < 0).any():
-            raise BakeError("max_distance must be non-negative (inf for unlimited)")
+    maxd = per_point_distance(np.inf if max_distance is None else max_distance, n, BakeError)
     threads = threads or default_threads()
     disp = np.zeros(n)
     source = np.full(n, SOURCE_NEAREST, np.int8)

@@ -20,8 +20,9 @@ import numba
 import numpy as np
 from numba import prange
 
-from .mesh import TriMesh
+from .checks import as_points, per_point_distance
 from .jit import kernel
+from .mesh import TriMesh
 
 LEAF_SIZE = 4
 _STACK = 128          # > tree depth (≈ log2(m / LEAF_SIZE) + a few for duplicate centroids)
@@ -321,19 +322,9 @@ class ClosestPointIndex:
         point gets distance ``inf``, face −1 and closest NaN. Smaller bounds query faster.
         ``threads``: numba threads for this call only (default: the pool's setting).
         """
-        q = np.asarray(points, dtype=np.float64)
-        if q.ndim != 2 or q.shape[1] != 3:
-            raise ClosestPointError(f"points must be (n, 3), got {q.shape}")
-        if not np.isfinite(q).all():
-            raise ClosestPointError("points contain NaN or infinity")
+        q = as_points(points, "points", ClosestPointError)
         n = len(q)
-        md = np.asarray(max_distance, dtype=np.float64)
-        if md.ndim == 0:
-            md = np.full(n, float(md))
-        if md.shape != (n,):
-            raise ClosestPointError(f"max_distance must be a scalar or ({n},), got {md.shape}")
-        if np.isnan(md).any() or (md < 0).any():
-            raise ClosestPointError("max_distance must be non-negative (inf for unlimited)")
+        md = per_point_distance(max_distance, n, ClosestPointError)
         out_p = np.empty((n, 3))
         out_f = np.empty(n, np.int64)
         out_d2 = np.empty(n)
