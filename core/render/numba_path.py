@@ -74,8 +74,8 @@ class _Antialias(torch.autograd.Function):
     def forward(ctx, color, verts, faces, raster, target):
         c, v, f, m = _np(color), _np(verts), faces_int32(faces), _np(raster.mvp)
         code_h, code_v = _codes(v, f, m, raster, verts, faces)
-        out = np.empty_like(c)
         fuse = target is not None
+        out = c[:1, :1] if fuse else np.empty_like(c)
         tg = _np(target.to(color.dtype)) if fuse else c[:1, :1, :1, :1]
         sign = np.empty(c.shape, np.int8) if fuse else np.zeros((1, 1, 1, 1), np.int8)
         rowsum = np.zeros(c.shape[0] * c.shape[1])

@@ -18,6 +18,7 @@ import torch
 from numba import njit, prange
 
 from ..jit import kernel
+from .prefetch import FACE_AHEAD, prefetch
 from .topology import face_neighbours_int32, faces_int32
 
 
@@ -118,6 +119,8 @@ def silhouette_flags(nbr, fc, tb, fb):
     height, width = tb.shape
     for r in range(height):
         for c in range(width):
+            if c + FACE_AHEAD < width and tb[r, c + FACE_AHEAD] >= 0:
+                prefetch(nbr, tb[r, c + FACE_AHEAD])
             f = tb[r, c]
             bits = 0
             if f >= 0:

@@ -17,6 +17,7 @@ from numba import njit, prange
 
 from ..jit import kernel
 from .geometry import NORMAL_EPS
+from .prefetch import ahead
 
 MODE_SHADED, MODE_NORMAL, MODE_DEPTH, MODE_MASK = 0, 1, 2, 3
 MODES = {"shaded": MODE_SHADED, "normal": MODE_NORMAL, "depth": MODE_DEPTH, "mask": MODE_MASK}
@@ -126,6 +127,7 @@ def shade_forward(verts, faces, vn, noff, mvp, tri, mode, qa, qb, qk, out):
         m = mvp[b]
         y = 1.0 - (r + 0.5) * (2.0 / height)
         for c in range(width):
+            ahead(tri[b, r], faces, verts, c)
             f = tri[b, r, c]
             if f < 0:
                 continue
@@ -210,6 +212,8 @@ def shade_backward(verts, faces, vn, noff, mvp, tri, mode, qa, qb, qk, gout, gv,
             m = mvp[b]
             y = 1.0 - (r + 0.5) * (2.0 / height)
             for c in range(width):
+                ahead(tri[b, r], faces, verts, c)
+                ahead(tri[b, r], faces, gvk, c)
                 f = tri[b, r, c]
                 if f < 0:
                     continue
