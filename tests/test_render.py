@@ -66,6 +66,28 @@ def test_triangle_ids_numba_equal_torch(sphere):
     assert torch.isinf(a.depth[~cover]).all()
 
 
+@pytest.mark.parametrize("fine_first", [True, False])
+def test_sparse_and_dense_raster_batches_equal_torch(fine_first):
+    """A mesh of a fine part (sub-pixel faces: the numba rasteriser's pre-pass batches) and a
+    coarse part (faces over many pixels: the direct batches), in both orders, so that the
+    switch happens mid-view either way; every pixel must still match the plain-torch z-buffer."""
+    fv, ff = icosphere(5, noise=0.01)  # 20480 faces, about 0.1 px each at 64 px
+    cv, cf = icosphere(4, noise=0.01)  # 5120 faces
+    fv = fv * 0.6 + np.array([0.5, 0.0, 0.0])
+    cv = cv * 1.4 - np.array([0.6, 0.0, 0.0])
+    parts = [(fv, ff), (cv, cf)] if fine_first else [(cv, cf), (fv, ff)]
+    v = np.concatenate([parts[0][0], parts[1][0]])
+    f = np.concatenate([parts[0][1], parts[1][1] + len(parts[0][0])])
+    vt, ft = tensors(v, f)
+    for width in (64, 400):
+        cams = fibonacci_cameras(4, width=width)
+        a = rasterize(vt, ft, cams, backend="numba")
+        b = rasterize(vt, ft, cams, backend="torch")
+        assert torch.equal(a.tri_id, b.tri_id)
+        assert torch.equal(a.depth, b.depth)
+        assert (a.tri_id >= len(parts[0][1])).any() and (a.tri_id[a.tri_id >= 0] < len(parts[0][1])).any()
+
+
 def test_shapes_and_kinds(sphere):
     v, f = sphere
     cams = fibonacci_cameras(2, width=32)

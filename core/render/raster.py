@@ -6,6 +6,8 @@ Coverage uses the same float64 arithmetic as ``torch_path.rasterize_torch``: can
 functions (from the lower to the higher vertex id, so a shared edge gives exactly opposite
 values; E == 0 belongs to the face that walks the edge upwards in id) and the nearest float32
 depth wins, ties to the smaller face id. Faces with a vertex behind the near plane are dropped.
+Faces go in batches; batches of mostly sub-pixel faces first pick out, branch-free, the few
+whose bounding box holds a pixel centre (see ``_raster_kernel``).
 A post-pass per view stores each pixel's silhouette-edge bits for the antialiasing.
 """
 from __future__ import annotations
@@ -56,57 +58,103 @@ def project(verts, m, width, height, sc):
     return 0
 
 
+CHUNK = 1024
+"""Faces per batch of the sparse path: few enough that their projected vertices are still in
+cache when the batch's survivors are rasterised."""
+
+
+@kernel()
+def survivors(faces, sc, fc, start, stop, surv):
+    """fc[f] <- facing sign of faces start..stop-1; surv[:n] <- those (ascending) that may cover
+    a pixel centre: the bounding box spans a centre column and a centre row and the face faces
+    some way (not degenerate, not crossing the near plane, finite). Returns n. Branch-free: it
+    is the cheap path when most faces are smaller than a pixel."""
+    n = 0
+    for f in range(start, stop):
+        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+        x0, y0, x1, y1, x2, y2 = sc[i0, 0], sc[i0, 1], sc[i1, 0], sc[i1, 1], sc[i2, 0], sc[i2, 1]
+        area, ok, s = _screen_area(sc, i0, i1, i2)
+        fc[f] = s
+        spans_x = math.ceil(min(x0, x1, x2) - 0.5) <= math.floor(max(x0, x1, x2) - 0.5)
+        spans_y = math.ceil(min(y0, y1, y2) - 0.5) <= math.floor(max(y0, y1, y2) - 0.5)
+        surv[n] = f
+        n += spans_x & spans_y & (s != 0) & (abs(area) < math.inf)
+    return n
+
+
+@njit(inline="always")
+def rasterize_face(faces, sc, fc, f, width, height, tb, db, facing_known):
+    """Depth-test face f at the pixel centres inside it (fc[f] <- its facing sign unless known).
+    Returns whether its bounding box held a centre."""
+    i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+    x0, y0, x1, y1, x2, y2 = sc[i0, 0], sc[i0, 1], sc[i1, 0], sc[i1, 1], sc[i2, 0], sc[i2, 1]
+    area, ok, s = _screen_area(sc, i0, i1, i2)
+    if not facing_known:
+        fc[f] = s
+    # bounding box of pixel centres first: most small faces cover none
+    c0 = max(math.ceil(min(x0, x1, x2) - 0.5), 0.0)
+    c1 = min(math.floor(max(x0, x1, x2) - 0.5), width - 1.0)
+    if not c0 <= c1:
+        return False
+    r0 = max(math.ceil(min(y0, y1, y2) - 0.5), 0.0)
+    r1 = min(math.floor(max(y0, y1, y2) - 0.5), height - 1.0)
+    if not r0 <= r1:
+        return False
+    if not ok or area == 0.0 or not math.isfinite(area):
+        return False
+    pos = area > 0
+    iw0, iw1, iw2 = sc[i0, 2], sc[i1, 2], sc[i2, 2]
+    for r in range(int(r0), int(r1) + 1):
+        py = r + 0.5
+        for c in range(int(c0), int(c1) + 1):
+            px = c + 0.5
+            e0, t0 = _edge(i0, i1, x0, y0, x1, y1, px, py)
+            s0 = e0 if pos else -e0
+            if s0 < 0 or (s0 == 0 and not t0):
+                continue
+            e1, t1 = _edge(i1, i2, x1, y1, x2, y2, px, py)
+            s1 = e1 if pos else -e1
+            if s1 < 0 or (s1 == 0 and not t1):
+                continue
+            e2, t2 = _edge(i2, i0, x2, y2, x0, y0, px, py)
+            s2 = e2 if pos else -e2
+            if s2 < 0 or (s2 == 0 and not t2):
+                continue
+            inv_w = ((e1 * iw0 + e2 * iw1) + e0 * iw2) / area
+            if not inv_w > 0:
+                continue
+            d = np.float32(1.0 / inv_w)
+            if d < db[r, c]:
+                db[r, c] = d
+                tb[r, c] = f
+    return True
+
+
 @kernel(parallel=True)
-def _raster_kernel(verts, faces, nbr, mvp, width, height, scratch, facing, tri, depth, flags):
-    nb = mvp.shape[0]
+def _raster_kernel(verts, faces, nbr, mvp, width, height, scratch, facing, surv, tri, depth, flags):
+    """Faces in batches of CHUNK. Where few faces of the last batch had a pixel centre in their
+    bounding box (sub-pixel faces), a branch-free pass picks out the next batch's first; where
+    most did, the next batch is rasterised directly (the pre-pass would only repeat their
+    bounding boxes). Same result either way."""
+    nb, nf = mvp.shape[0], faces.shape[0]
     nslot = scratch.shape[0]
     for slot in prange(nslot):
-        sc = scratch[slot]
+        sc, fc, sv = scratch[slot], facing[slot], surv[slot]
         for b in range(slot, nb, nslot):
             project(verts, mvp[b], width, height, sc)
-            fc = facing[slot]
-            tb = tri[b]
-            db = depth[b]
-            for f in range(faces.shape[0]):
-                i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
-                x0, y0, x1, y1, x2, y2 = sc[i0, 0], sc[i0, 1], sc[i1, 0], sc[i1, 1], sc[i2, 0], sc[i2, 1]
-                area, ok, fc[f] = _screen_area(sc, i0, i1, i2)
-                # bounding box of pixel centres first: most small faces cover none
-                c0 = max(math.ceil(min(x0, x1, x2) - 0.5), 0.0)
-                c1 = min(math.floor(max(x0, x1, x2) - 0.5), width - 1.0)
-                if not c0 <= c1:
-                    continue
-                r0 = max(math.ceil(min(y0, y1, y2) - 0.5), 0.0)
-                r1 = min(math.floor(max(y0, y1, y2) - 0.5), height - 1.0)
-                if not r0 <= r1:
-                    continue
-                if not ok or area == 0.0 or not math.isfinite(area):
-                    continue
-                pos = area > 0
-                iw0, iw1, iw2 = sc[i0, 2], sc[i1, 2], sc[i2, 2]
-                for r in range(int(r0), int(r1) + 1):
-                    py = r + 0.5
-                    for c in range(int(c0), int(c1) + 1):
-                        px = c + 0.5
-                        e0, t0 = _edge(i0, i1, x0, y0, x1, y1, px, py)
-                        s0 = e0 if pos else -e0
-                        if s0 < 0 or (s0 == 0 and not t0):
-                            continue
-                        e1, t1 = _edge(i1, i2, x1, y1, x2, y2, px, py)
-                        s1 = e1 if pos else -e1
-                        if s1 < 0 or (s1 == 0 and not t1):
-                            continue
-                        e2, t2 = _edge(i2, i0, x2, y2, x0, y0, px, py)
-                        s2 = e2 if pos else -e2
-                        if s2 < 0 or (s2 == 0 and not t2):
-                            continue
-                        inv_w = ((e1 * iw0 + e2 * iw1) + e0 * iw2) / area
-                        if not inv_w > 0:
-                            continue
-                        d = np.float32(1.0 / inv_w)
-                        if d < db[r, c]:
-                            db[r, c] = d
-                            tb[r, c] = f
+            tb, db = tri[b], depth[b]
+            sparse = True
+            for start in range(0, nf, CHUNK):
+                stop = min(start + CHUNK, nf)
+                if sparse:
+                    n = survivors(faces, sc, fc, start, stop, sv)
+                    for k in range(n):
+                        rasterize_face(faces, sc, fc, sv[k], width, height, tb, db, True)
+                else:
+                    n = 0
+                    for f in range(start, stop):
+                        n += rasterize_face(faces, sc, fc, f, width, height, tb, db, False)
+                sparse = 2 * n < stop - start
             silhouette_flags(nbr, fc, tb, flags[b])
     return 0
 
@@ -161,6 +209,10 @@ def _scratch(n_verts: int, n_faces: int, n_views: int) -> tuple[np.ndarray, np.n
     return np.empty((slots, n_verts, 4), dtype=np.float64), np.empty((slots, n_faces), dtype=np.int8)
 
 
+def _survivor_scratch(n_faces: int, slots: int) -> np.ndarray:
+    return np.empty((slots, min(n_faces, CHUNK)), dtype=np.int32)
+
+
 def rasterize_numba(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor, width: int,
                     height: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """(tri_id int32 (B, H, W), depth float32 (B, H, W) +inf background, silhouette-edge
@@ -174,7 +226,8 @@ def rasterize_numba(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor,
     flags = np.zeros((nb, height, width), dtype=np.uint8)
     if len(f) and nb:
         sc, fc = _scratch(len(v), len(f), nb)
-        _raster_kernel(v, f, face_neighbours_int32(faces), m, int(width), int(height), sc, fc, tri, depth, flags)
+        _raster_kernel(v, f, face_neighbours_int32(faces), m, int(width), int(height), sc, fc,
+                       _survivor_scratch(len(f), len(sc)), tri, depth, flags)
     return torch.from_numpy(tri), torch.from_numpy(depth), torch.from_numpy(flags)
 
 
