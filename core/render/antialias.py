@@ -217,9 +217,8 @@ def antialias_forward(color, verts, faces, mvp, code_h, code_v, out, target, sig
         b, r = row // height, row % height
         m = mvp[b]
         o = np.empty((width, nc), color.dtype) if fuse_l1 else out[b, r]
+        o.ravel()[:] = color[b, r].ravel()
         for c in range(width):
-            for ch in range(nc):
-                o[c, ch] = color[b, r, c, ch]
             for q in range(4):
                 code, ra, ca, rb, cb, vertical, me_is_b = _pair_at(q, r, c, code_h, code_v, b, width, height)
                 if code < 0:
@@ -263,9 +262,10 @@ def antialias_backward(color, verts, faces, mvp, code_h, code_v, gout, gscale, g
         for row in range(k * nrows // nslot, (k + 1) * nrows // nslot):
             b, r = row // height, row % height
             m = mvp[b]
+            gc, go = gcolor[b, r].ravel(), gout[b, r].ravel()
+            for j in range(gc.shape[0]):  # flat, so that it vectorises; pairs adjust below
+                gc[j] = gscale * go[j]
             for c in range(width):
-                for ch in range(nc):
-                    gcolor[b, r, c, ch] = gscale * gout[b, r, c, ch]
                 for q in range(4):
                     code, ra, ca, rb, cb, vertical, me_is_b = _pair_at(q, r, c, code_h, code_v, b, width, height)
                     if code < 0:
