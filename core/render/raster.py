@@ -25,13 +25,6 @@ from .topology import face_neighbours_int32, faces_int32
 
 
 @njit(inline="always")
-def _edge(fa, fb, xa, ya, xb, yb, px, py):
-    if fa > fb:
-        return -((xa - xb) * (py - yb) - (ya - yb) * (px - xb)), False
-    return (xb - xa) * (py - ya) - (yb - ya) * (px - xa), True
-
-
-@njit(inline="always")
 def _screen_area(sc, i0, i1, i2):
     """(twice the signed screen area, in front of the near plane, facing sign) of a face
     from projected vertices; the facing sign is 0 for degenerate or clipped faces."""
@@ -104,19 +97,25 @@ def rasterize_face(faces, sc, fc, f, width, height, tb, db, facing_known):
         return False
     pos = area > 0
     iw0, iw1, iw2 = sc[i0, 2], sc[i1, 2], sc[i2, 2]
+    # per edge once: endpoints in canonical order and the sign that restores the face's order
+    t0, t1, t2 = i0 <= i1, i1 <= i2, i2 <= i0
+    xl0, yl0, xh0, yh0 = (x0, y0, x1, y1) if t0 else (x1, y1, x0, y0)
+    xl1, yl1, xh1, yh1 = (x1, y1, x2, y2) if t1 else (x2, y2, x1, y1)
+    xl2, yl2, xh2, yh2 = (x2, y2, x0, y0) if t2 else (x0, y0, x2, y2)
+    g0, g1, g2 = (1.0 if t0 else -1.0), (1.0 if t1 else -1.0), (1.0 if t2 else -1.0)
     for r in range(int(r0), int(r1) + 1):
         py = r + 0.5
         for c in range(int(c0), int(c1) + 1):
             px = c + 0.5
-            e0, t0 = _edge(i0, i1, x0, y0, x1, y1, px, py)
+            e0 = g0 * ((xh0 - xl0) * (py - yl0) - (yh0 - yl0) * (px - xl0))
             s0 = e0 if pos else -e0
             if s0 < 0 or (s0 == 0 and not t0):
                 continue
-            e1, t1 = _edge(i1, i2, x1, y1, x2, y2, px, py)
+            e1 = g1 * ((xh1 - xl1) * (py - yl1) - (yh1 - yl1) * (px - xl1))
             s1 = e1 if pos else -e1
             if s1 < 0 or (s1 == 0 and not t1):
                 continue
-            e2, t2 = _edge(i2, i0, x2, y2, x0, y0, px, py)
+            e2 = g2 * ((xh2 - xl2) * (py - yl2) - (yh2 - yl2) * (px - xl2))
             s2 = e2 if pos else -e2
             if s2 < 0 or (s2 == 0 and not t2):
                 continue
