@@ -8,7 +8,8 @@ then backward to the vertices) from 24 views, numba CPU kernels next to the plai
 The mesh is ``_common.noisy_sphere`` with its vertices renumbered in order of first use (memory
 locality like a micro-mesh's; the raw numbering is ~30 % slower to rasterise); the target is the
 shaded render of the same sphere scaled by 1.01. Each configuration runs in its own child process so that ``peak_mb`` (the process's peak
-resident memory while the timed calls run, sampled every 2 ms) is not polluted by the others.
+resident memory during one more forward + backward after the timed ones, sampled every 2 ms)
+is not polluted by the others.
 Times are medians over ``--repeat`` runs after one warm-up run.
 """
 from __future__ import annotations
@@ -90,8 +91,9 @@ def run_one(backend: str, device: str, triangles: int, res: int, views: int, rep
         sync()
 
     fwd = C.median_time(forward, repeat=repeat, warmup=1)
-    with PeakRSS() as mem:
-        fb = C.median_time(forward_backward, repeat=repeat, warmup=1)
+    fb = C.median_time(forward_backward, repeat=repeat, warmup=1)
+    with PeakRSS() as mem:  # a separate run: the sampling thread would steal time from the timed ones
+        forward_backward()
     covered = int((rasterize(verts, faces, cams, backend=backend).tri_id >= 0).sum())
     return {"backend": backend, "device": device, "triangles": len(f), "resolution": res,
             "views": views, "forward_s": fwd, "forward_backward_s": fb, "peak_mb": mem.peak_mb,
