@@ -9,8 +9,8 @@ The mesh is ``_common.noisy_sphere`` with its vertices renumbered in order of fi
 locality like a micro-mesh's; the raw numbering is ~30 % slower to rasterise); the target is the
 shaded render of the same sphere scaled by 1.01. Each configuration runs in its own child process so that ``peak_mb`` (the process's peak
 resident memory during one more forward + backward after the timed ones, sampled every 2 ms)
-is not polluted by the others.
-Times are medians over ``--repeat`` runs after one warm-up run.
+is not polluted by the others. Like ``core.construct``, the child keeps large freed buffers in
+the heap (``core.memory``). Times are medians over ``--repeat`` runs after one warm-up run.
 """
 from __future__ import annotations
 
@@ -69,7 +69,10 @@ def run_one(backend: str, device: str, triangles: int, res: int, views: int, rep
     import torch
 
     from core.cameras import fibonacci_cameras
+    from core.memory import keep_large_allocations
     from core.render import rasterize, reference_images, render_loss
+
+    keep_large_allocations()  # as core.construct runs the renderer
 
     v, f = first_use_order(*C.noisy_sphere(triangles))
     cams = fibonacci_cameras(views, width=res)

@@ -38,6 +38,7 @@ from .microtopology import balance_levels
 from .optim import Reparameterized, UniformAdam, clip_gradients
 from .render import pixel_error, rasterize, reference_images, render, warm_up
 from .settings import ConstructSettings, preset, to_dict
+from .memory import keep_large_allocations, release_memory
 from .threads import set_threads
 
 
@@ -309,7 +310,20 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
     fixed. No subdivision schedule and no LOD; the base is frozen (the result's base vertices
     are the input's); displacements start from projection baking at those levels and are
     optimised as usual (reparameterisation, L_sv, rendering loss) within the settings' budget.
+
+    Large freed buffers stay in the heap while it runs (``core.memory``) and go back to the OS
+    when it returns.
     """
+    keep_large_allocations()
+    try:
+        return _construct(reference, base, cameras, settings, progress, should_stop, levels)
+    finally:
+        release_memory()
+
+
+def _construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None, settings: ConstructSettings,
+               progress: Callable[[Progress], None] | None, should_stop: Callable[[], bool] | None,
+               levels: np.ndarray | None) -> ConstructResult:
     s = settings.validate()
     _check_inputs(reference, base)
     fixed = _fixed_levels(base, levels) if levels is not None else None
