@@ -4,6 +4,7 @@ then backward to the vertices) from 24 views, numba CPU kernels next to the plai
     python bench/render_bench.py                  # 20k / 200k / 1M triangles at 256² and 512²
     python bench/render_bench.py --quick          # 20k / 200k at 256², fewer repeats
     python bench/render_bench.py --json out.json  # records {backend, device, triangles, ...}
+    python bench/render_bench.py --profile        # plus the numba iteration stage by stage
 
 The mesh is ``_common.noisy_sphere`` with its vertices renumbered in order of first use (memory
 locality like a micro-mesh's; the raw numbering is ~30 % slower to rasterise); the target is the
@@ -65,7 +66,35 @@ def first_use_order(v, f):
     return v[order], new[f]
 
 
-def run_one(backend: str, device: str, triangles: int, res: int, views: int, repeat: int) -> dict:
+def numba_stages(verts, faces, cams, target, repeat: int) -> dict:
+    """Median seconds of each stage of a numba iteration, timed alone (their sum is about the
+    iteration): z-buffer, vertex normals, fused shading forward / backward, antialias + L1
+    forward / backward."""
+    import torch
+
+    from core.render import numba_path as NP
+    from core.render import rasterize
+    from core.render.normals import vertex_normals_numba
+
+    t = lambda fn: C.median_time(fn, repeat=repeat, warmup=1)  # noqa: E731
+    r = rasterize(verts, faces, cams, backend="numba")
+    vn = vertex_normals_numba(verts, faces).detach().requires_grad_()
+    img = NP._Shade.apply(verts, vn, faces, r.mvp, r.tri_id, 0)
+    ones = torch.ones_like(img)
+    color = img.detach().requires_grad_()
+    loss = NP._Antialias.apply(color, verts, faces, r, target)
+    return {
+        "raster_s": t(lambda: rasterize(verts, faces, cams, backend="numba")),
+        "normals_s": t(lambda: vertex_normals_numba(verts, faces)),
+        "shade_forward_s": t(lambda: NP._Shade.apply(verts, vn, faces, r.mvp, r.tri_id, 0)),
+        "shade_backward_s": t(lambda: torch.autograd.grad(img, (verts, vn), ones, retain_graph=True)),
+        "antialias_l1_forward_s": t(lambda: NP._Antialias.apply(color, verts, faces, r, target)),
+        "antialias_l1_backward_s": t(lambda: torch.autograd.grad(loss, (color, verts), retain_graph=True)),
+    }
+
+
+def run_one(backend: str, device: str, triangles: int, res: int, views: int, repeat: int,
+            profile: bool = False) -> dict:
     import torch
 
     from core.cameras import fibonacci_cameras
@@ -98,9 +127,12 @@ def run_one(backend: str, device: str, triangles: int, res: int, views: int, rep
     with PeakRSS() as mem:  # a separate run: the sampling thread would steal time from the timed ones
         forward_backward()
     covered = int((rasterize(verts, faces, cams, backend=backend).tri_id >= 0).sum())
-    return {"backend": backend, "device": device, "triangles": len(f), "resolution": res,
-            "views": views, "forward_s": fwd, "forward_backward_s": fb, "peak_mb": mem.peak_mb,
-            "covered_pixels": covered}
+    rec = {"backend": backend, "device": device, "triangles": len(f), "resolution": res,
+           "views": views, "forward_s": fwd, "forward_backward_s": fb, "peak_mb": mem.peak_mb,
+           "covered_pixels": covered}
+    if profile and backend == "numba":
+        rec["stages"] = numba_stages(verts, faces, cams, target, repeat)
+    return rec
 
 
 def main() -> None:
@@ -114,6 +146,8 @@ def main() -> None:
                    help="timed runs per figure for the slow plain-torch path (default: --repeat)")
     p.add_argument("--backends", nargs="+", default=["numba", "torch"], choices=["numba", "torch"])
     p.add_argument("--device", default="cpu", help="cpu or cuda (cuda runs the torch backend only)")
+    p.add_argument("--profile", action="store_true",
+                   help="also time each stage of the numba iteration alone (second table)")
     p.add_argument("--child", help=argparse_suppress())
     a = p.parse_args()
     from core.threads import set_threads
@@ -132,7 +166,8 @@ def main() -> None:
             row = {"triangles": n, "res": r, "views": a.views}
             for be in backends:
                 rep = a.torch_repeat if (be == "torch" and a.torch_repeat) else repeat
-                cfg = dict(backend=be, device=a.device, triangles=n, res=r, views=a.views, repeat=rep)
+                cfg = dict(backend=be, device=a.device, triangles=n, res=r, views=a.views, repeat=rep,
+                           profile=a.profile)
                 cmd = [sys.executable, __file__, "--child", json.dumps(cfg), "--threads", str(threads)]
                 out = subprocess.run(cmd, capture_output=True, text=True)
                 if out.returncode:
@@ -150,6 +185,10 @@ def main() -> None:
                   file=sys.stderr, flush=True)
     C.print_table(rows, title=f"render iteration, {a.views} views, {threads} threads "
                               "(rasterise + shade + antialias + L1, forward / forward+backward)")
+    stages = [{"triangles": rec["triangles"], "res": rec["resolution"], **rec["stages"]}
+              for rec in records if "stages" in rec]
+    if stages:
+        C.print_table(stages, title="numba iteration by stage, each timed alone (s)")
     C.write_json(a.json, records, threads=threads)
 
 
