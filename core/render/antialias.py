@@ -110,8 +110,11 @@ def _pair_code(verts, faces, nbr, m, tb, db, fb, ra, ca, rb, cb, vertical, width
     if e < 0:
         return -1
     s_cur = 2
+    nx0 = ny0 = nx1 = ny1 = nx2 = ny2 = 0.0
+    nok = False
     for step in range(MAX_WALK):
         n = nbr[cur, e]
+        projected = False
         if step == 0:
             sil = (bits >> e) & 1 == 1
         elif n < 0:
@@ -120,6 +123,7 @@ def _pair_code(verts, faces, nbr, m, tb, db, fb, ra, ca, rb, cb, vertical, width
             if s_cur == 2:
                 s_cur = _facing(sx0, sy0, sx1, sy1, sx2, sy2, ok)
             nx0, ny0, nx1, ny1, nx2, ny2, nok = _face_screen(verts, faces, m, n, width, height)
+            projected = True
             sil = _facing(nx0, ny0, nx1, ny1, nx2, ny2, nok) != s_cur
         if sil:
             if _crossing(sx0, sy0, sx1, sy1, sx2, sy2, e, vertical, fixed, p0)[1]:
@@ -129,7 +133,9 @@ def _pair_code(verts, faces, nbr, m, tb, db, fb, ra, ca, rb, cb, vertical, width
             return -1
         # step into the neighbour (a front face covering no pixel centre) and find its exit
         ia, ib = faces[cur, e], faces[cur, (e + 1) % 3]
-        sx0, sy0, sx1, sy1, sx2, sy2, ok = _face_screen(verts, faces, m, n, width, height)
+        if not projected:
+            nx0, ny0, nx1, ny1, nx2, ny2, nok = _face_screen(verts, faces, m, n, width, height)
+        sx0, sy0, sx1, sy1, sx2, sy2, ok = nx0, ny0, nx1, ny1, nx2, ny2, nok
         if not ok:
             return -1
         ne, nt = -1, np.nan
