@@ -178,6 +178,9 @@ def test_numba_and_torch_backends_agree():
         res.append((float(loss.detach()), x.grad))
     assert abs(res[0][0] - res[1][0]) < 1e-12
     torch.testing.assert_close(res[0][1], res[1][1], rtol=1e-9, atol=1e-12)
+    for kind in ("shaded", "normal", "mask", "depth"):  # the un-fused antialiased images too
+        a, b = (render(v, f, cams, kind=kind, raster=r, backend=be) for be in BACKENDS)
+        torch.testing.assert_close(a, b, rtol=1e-9, atol=1e-12)
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")

@@ -223,7 +223,7 @@ def antialias_forward(color, verts, faces, mvp, code_h, code_v, out, target, sig
         b, r = row // height, row % height
         m = mvp[b]
         o = np.empty((width, nc), color.dtype) if fuse_l1 else out[b, r]
-        o.ravel()[:] = color[b, r].ravel()
+        o.ravel()[:] = color[b, r].ravel()  # views: out and color are C-contiguous
         for c in range(width):
             for q in range(4):
                 code, ra, ca, rb, cb, vertical, me_is_b = _pair_at(q, r, c, code_h, code_v, b, width, height)
