@@ -24,10 +24,6 @@ MODES = {"shaded": MODE_SHADED, "normal": MODE_NORMAL, "depth": MODE_DEPTH, "mas
 SLOTS = 8
 """Gradient accumulation slots (fixed, so results are independent of the thread count)."""
 _TINY = 1e-300
-_FAST = {"contract", "arcp", "nsz", "reassoc", "afn"}
-"""Relaxed float rules for the per-pixel kernels (about 8% faster): NaN and inf keep their
-meaning (no nnan / ninf), and one compiled kernel still gives the same bits on any thread count.
-Never for the rasteriser, whose coverage must match the torch path exactly."""
 
 
 @njit(inline="always")
@@ -121,7 +117,7 @@ def reduce(buf: np.ndarray) -> np.ndarray:
     return out
 
 
-@kernel(parallel=True, fastmath=_FAST)
+@kernel(parallel=True, fastmath={"contract", "arcp"})
 def shade_forward(verts, faces, vn, noff, mvp, tri, mode, qa, qb, qk, out):
     """out (B, H, W, C) (zeros on entry) <- per-pixel value of ``mode``. Vertex normals are
     vn[:, noff:noff + 3] (``verts`` and ``vn`` may be one packed (N, 6) array: fewer cache misses)."""
@@ -200,7 +196,7 @@ def pixel_backward(verts, faces, vn, noff, m, f, x, y, mode, qa, qb, qk, g0, g1,
     add_vertex_grad(gv, i2, m, gu2, gt2, ew2 - x * gu2 - y * gt2)
 
 
-@kernel(parallel=True, fastmath=_FAST)
+@kernel(parallel=True, fastmath={"contract", "arcp"})
 def shade_backward(verts, faces, vn, noff, mvp, tri, mode, qa, qb, qk, gout, gv, gn):
     """gv (SLOTS, N, >=3), gn (SLOTS, N, noff + 3) <- per-slot parts of d(sum gout * out)/d verts
     and d/d vertex normals (may be one packed (SLOTS, N, 6) buffer with noff = 3)."""
