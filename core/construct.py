@@ -311,8 +311,8 @@ def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
     are the input's); displacements start from projection baking at those levels and are
     optimised as usual (reparameterisation, L_sv, rendering loss) within the settings' budget.
 
-    Large freed buffers stay in the heap while it runs (``core.memory``) and go back to the OS
-    when it returns.
+    Large freed buffers stay in the heap while it runs (``core.memory``; the policy stays set
+    for the process) and the free heap goes back to the OS when it returns.
     """
     keep_large_allocations()
     try:

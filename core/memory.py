@@ -8,8 +8,11 @@ cores. :func:`keep_large_allocations` raises the threshold so that the freed arr
 from the heap, and :func:`release_memory` gives the unused heap back to the OS when a
 construction ends.
 
-Both act on the whole process. Where the C library is not glibc, or where the process
-allocates through another allocator (Blender's Linux builds use jemalloc), they do nothing.
+Both act on the whole process, and the raised threshold stays for the rest of it (glibc
+cannot go back to its adaptive default); freed heap is only returned by ``release_memory``,
+which ``core.construct`` calls after every construction. Where the C library is not glibc, or
+where the process allocates through another allocator (Blender's Linux builds use jemalloc),
+they do nothing.
 """
 from __future__ import annotations
 
