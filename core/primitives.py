@@ -87,3 +87,47 @@ def torus(n: int = 12, m: int = 8, major: float = 1.0, minor: float = 0.35) -> t
     f = np.concatenate([np.stack([q[0], q[1], q[2]], -1).reshape(-1, 3),
                         np.stack([q[0], q[2], q[3]], -1).reshape(-1, 3)])
     return v, f.astype(np.int64)
+
+
+def holed_plate(genus: int, k: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """A closed genus-``genus`` solid: a one-voxel-thick plate of 3 × (2·genus + 1) unit voxels
+    with a square hole through every second voxel of its middle row. Sharp 90° creases
+    everywhere, flat faces between them (a CAD-like part). Each voxel face is split into
+    k × k squares of two triangles; outward oriented, vertices merged exactly."""
+    if genus < 0 or k < 1:
+        raise ValueError("genus must be >= 0 and k >= 1")
+    nx, ny = 2 * max(genus, 0) + 1, 3
+    solid = np.ones((nx, ny), bool)
+    solid[1:nx - 1:2, 1] = False
+    quads = []
+    for x, y in zip(*np.nonzero(solid)):
+        for axis in range(3):
+            for side in (0, 1):
+                nb = [x, y, 0]
+                nb[axis] += 1 if side else -1
+                inside = (0 <= nb[0] < nx and 0 <= nb[1] < ny and nb[2] == 0
+                          and solid[nb[0], nb[1]])
+                if not inside:
+                    quads.append((x, y, axis, side))
+    s = np.linspace(0.0, 1.0, k + 1)
+    a, b = np.meshgrid(np.arange(k), np.arange(k), indexing="ij")
+    corners = np.stack([np.stack([a, b], -1), np.stack([a + 1, b], -1),
+                        np.stack([a + 1, b + 1], -1), np.stack([a, b + 1], -1)], 2).reshape(-1, 4, 2)
+    pts, tris, base = [], [], 0
+    for x, y, axis, side in quads:
+        u_ax, v_ax = [(1, 2), (2, 0), (0, 1)][axis]
+        p = np.zeros((len(corners), 4, 3))
+        p[..., axis] = side
+        p[..., u_ax] = s[corners[..., 0]]
+        p[..., v_ax] = s[corners[..., 1]]
+        p += np.array([x, y, 0.0])
+        if not side:                     # the (u, v, axis) frame is right-handed: flip at side 0
+            p = p[:, ::-1]
+        pts.append(p.reshape(-1, 3))
+        q = base + np.arange(len(corners) * 4).reshape(-1, 4)
+        base += len(corners) * 4
+        tris.append(np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]]))
+    P = np.concatenate(pts)
+    key = np.round(P * k).astype(np.int64)
+    _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    return P[first], inv.reshape(-1)[np.concatenate(tris)].astype(np.int64)

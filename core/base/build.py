@@ -1,0 +1,107 @@
+"""The base-mesh builder: one call used by Make Base, by Construct without a base and by
+``batch.py``.
+
+It works in the reference's unit-sphere frame, with coordinates rounded to float32 there, so
+copies of a mesh at any scale or position give the same base (up to that similarity). The
+target is a face count, a ratio of the input's faces, or only the error bound (both 0).
+Afterwards it measures what it made: the distance from every reference vertex to the base
+(relative to the bounding-box diagonal), the isotropy, and the topology against the input's,
+with a warning in words for everything a user should know.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ..closest import ClosestPointIndex
+from ..mesh import TriMesh, unit_sphere_normalization
+from ..metrics import isotropy
+from .decimate import decimate
+from .topology import differences, topology
+
+
+class BaseError(ValueError):
+    """A base-mesh target that cannot be used."""
+
+
+@dataclass
+class BaseMesh:
+    """A base mesh (caller's frame) and its report (see :func:`build_base`)."""
+
+    mesh: TriMesh
+    report: dict = field(default_factory=dict)
+
+    @property
+    def warnings(self) -> list[str]:
+        return self.report.get("warnings", [])
+
+
+def target_faces(n_faces: int, ratio: float = 0.0, faces: int = 0) -> int:
+    """The face count asked for: ``faces`` if set, else ``ratio`` of ``n_faces``, else 1 (the
+    error bound decides)."""
+    if faces < 0 or not 0.0 <= ratio <= 1.0 or not np.isfinite(ratio):
+        raise BaseError("the base target needs faces >= 0 and a ratio within [0, 1]")
+    if faces > 0:
+        return int(faces)
+    if ratio > 0:
+        return max(4, int(round(n_faces * ratio)))
+    return 1
+
+
+def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
+               max_error: float = 1e-3, min_quality: float = 0.4,
+               progress: Callable[[float], None] | None = None,
+               should_stop: Callable[[], bool] | None = None) -> BaseMesh:
+    """Decimate ``reference`` into a base mesh that keeps its topology.
+
+    ``faces`` / ``ratio``: the target (see :func:`target_faces`). ``max_error``: bound on the
+    RMS distance of merged vertices to the original planes, relative to the reference's
+    bounding-box diagonal (0: none). ``min_quality``: floor on 2r/R of new triangles.
+    ``progress(fraction)``; ``should_stop()`` cancels (``DecimateCancelled``).
+
+    The report: ``target_faces``, ``faces``, ``stopped`` ("target" or "limit"),
+    ``error_mean`` / ``error_max`` (reference vertices to the base, over the diagonal; mean
+    weighted by vertex area), ``isotropy``, ``topology_input`` / ``topology_base``,
+    ``warnings`` (sentences), ``time_s``.
+    """
+    t0 = time.perf_counter()
+    if not np.isfinite(max_error) or max_error < 0:
+        raise BaseError("max_error must be a finite number >= 0 (0: no bound)")
+    if not 0 <= min_quality < 1:
+        raise BaseError("min_quality must be within [0, 1)")
+    target = target_faces(reference.n_faces, ratio, faces)
+    norm = unit_sphere_normalization(reference.vertices)
+    unit = TriMesh(norm.apply(reference.vertices).astype(np.float32), reference.faces)
+    diag = unit.bbox_diagonal
+    n0 = reference.n_faces
+
+    def report(n: int, tgt: int) -> None:
+        if progress is not None:
+            progress(min(1.0, (n0 - n) / max(n0 - tgt, 1)))
+
+    dec = decimate(unit, target, max_error=max_error * diag if max_error > 0 else np.inf,
+                   min_quality=min_quality, progress=report, should_stop=should_stop)
+    base_unit = TriMesh(dec.vertices, dec.faces)
+    _, _, dist = ClosestPointIndex(base_unit.vertices, base_unit.faces).query(unit.vertices)
+    used = np.zeros(unit.n_vertices, bool)
+    used[unit.faces.reshape(-1)] = True
+    w = unit.vertex_areas[used]
+    d = dist[used] / diag
+    topo_in, topo_base = topology(unit), topology(base_unit)
+    warnings = differences(topo_in, topo_base)
+    if base_unit.n_faces > target and target > 1:
+        warnings.append(f"the base stopped at {base_unit.n_faces} faces instead of {target}: "
+                        "no further collapse keeps the error bound, the topology and the "
+                        "triangle shapes")
+    rep = {"target_faces": target if target > 1 else None, "faces": base_unit.n_faces,
+           "vertices": base_unit.n_vertices, "stopped": dec.stopped,
+           "collapses": dec.collapses, "rejected": dec.rejected,
+           "max_error": max_error, "min_quality": min_quality,
+           "error_mean": float((d * w).sum() / max(w.sum(), 1e-300)),
+           "error_max": float(d.max()), "isotropy": isotropy(base_unit.vertices, base_unit.faces),
+           "topology_input": topo_in.as_dict(), "topology_base": topo_base.as_dict(),
+           "warnings": warnings, "time_s": time.perf_counter() - t0}
+    return BaseMesh(TriMesh(norm.invert(base_unit.vertices), base_unit.faces), rep)
