@@ -1,0 +1,75 @@
+"""Which faces get which level (method §5): Algorithm 1 at each subdivision event, Algorithm 2
+after the run, and the storage budget spent by visual gain in both."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..lod import (exchange_to_budget, in_optimization_lod, post_process_lod, relative_gain,
+                   roll_back_to_budget, trim_to_budget)
+from ..micromesh import MicroMesh
+from ..microtopology import balance_levels
+from .scene import face_errors
+from .state import RunState
+
+
+def next_levels(run: RunState, old: np.ndarray, errs: np.ndarray | None,
+                gains: np.ndarray | None) -> np.ndarray:
+    """Levels after the subdivision from ``run.level`` (balanced, within ℓmax and the budget).
+
+    ``errs``: per-face errors now; ``gains``: what ``run.level`` brought over the level before
+    (None before ℓmin or without the visual criterion)."""
+    s, base, level = run.s, run.base, run.level
+    if s.lod == "in_optim":
+        # With a budget, the budget decides (ours): Algorithm 1 runs with τ = -inf (the
+        # one-ring rule still holds) and a binding budget is then spent by gain order.
+        tau = -np.inf if run.cost is not None else s.tau_in
+        new = in_optimization_lod(old, level, s.min_level, gains, base.face_neighbors_csr, tau)
+    else:
+        new = np.where(old == level, level + 1, old)
+    if run.cost is not None and run.cost(new) > run.budget:
+        if s.lod == "in_optim" and gains is not None and level >= 1:
+            new = exchange_to_budget(old, level, run.last_errors, errs, base.face_adjacency,
+                                     run.cost, run.budget, s.min_level)
+        else:
+            prio = gains if gains is not None else errs
+            new = trim_to_budget(old, new, prio, run.cost, run.budget)
+    return balance_levels(base, np.minimum(new, s.max_level))
+
+
+def final_levels(run: RunState, mm: MicroMesh) -> MicroMesh:
+    """After the optimisation: Algorithm 2 (``lod="post"``) or a roll-back into the budget;
+    the artist's fixed levels are kept as they are."""
+    s = run.s
+    if run.fixed is not None:
+        return mm
+    if s.lod == "post" and mm.levels.max() > s.min_level:
+        with run.timer.phase("post_lod"):
+            return _post_process(run, mm)
+    if run.cost is not None and run.cost(mm.levels) > run.budget:
+        with run.timer.phase("post_lod"):
+            return mm.with_levels(roll_back_to_budget(mm.levels, run.gains, run.base.face_adjacency,
+                                                      run.cost, run.budget, s.min_level))
+    return mm
+
+
+def _post_process(run: RunState, mm: MicroMesh) -> MicroMesh:
+    """Algorithm 2 on the optimised mesh: per-face errors at every level from ℓmin to the top
+    (the finished surface resampled at uniform levels), roll back, then fit the budget."""
+    s = run.s
+    top = int(mm.levels.max())
+    nf = mm.base.n_faces
+    errs = {}
+    for lv in range(max(0, s.min_level - 1), top + 1):
+        run.check_stop()
+        m = mm if (mm.levels == lv).all() else mm.with_levels(np.full(nf, lv))
+        errs[lv] = face_errors(m, run.scene, run.lod_cams, "lod", s, run.ref_tree)
+    gains = {lv: relative_gain(errs[lv - 1], errs[lv]) for lv in errs if lv - 1 in errs}
+    run.gains.update(gains)
+    new = post_process_lod(gains, top, s.min_level, mm.base.face_neighbors_csr, s.tau_post)
+    new = np.minimum(new, mm.levels)
+    new = balance_levels(mm.base, new)
+    if run.cost is not None and run.cost(new) > run.budget:
+        new = roll_back_to_budget(new, gains, mm.base.face_adjacency, run.cost, run.budget,
+                                  s.min_level)
+    return mm.with_levels(new)
+

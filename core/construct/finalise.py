@@ -1,0 +1,40 @@
+"""The end of a construction: final levels, balance, tight bounds, metrics, and the result in
+the caller's frame."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..bounds import tight_bounds
+from ..mesh import TriMesh
+from ..microtopology import balance_levels
+from .choose_levels import final_levels
+from .evaluate import evaluate
+from .frame import to_caller_frame
+from .params import Parameters
+from .state import RunState
+from .types import ConstructResult
+
+
+def finalise(run: RunState, params: Parameters, reference: TriMesh, base: TriMesh,
+             t_start: float, iterations: int, stopped_early: bool) -> ConstructResult:
+    with run.timer.phase("finalize"):
+        mm = params.micromesh()
+    mm = final_levels(run, mm)
+    with run.timer.phase("finalize"):
+        mm = mm.with_levels(balance_levels(run.base, mm.levels))
+        bounds = tight_bounds(mm)
+    run.check_stop()
+    construct_time = time.perf_counter() - t_start
+    metrics: dict = {}
+    if run.s.compute_metrics:
+        with run.timer.phase("metrics"):
+            metrics = evaluate(mm, run.scene.ref, run.s, bounds, run.device)
+    metrics.update(time_s=construct_time, iterations=iterations, stopped_early=stopped_early,
+                   fixed_levels=run.fixed is not None)
+    out, b = to_caller_frame(mm, bounds, run.norm)
+    if run.fixed is not None:        # the base was frozen: hand back the caller's vertices
+        out = out.with_base_positions(np.asarray(base.vertices, dtype=np.float64))
+    return ConstructResult(out, b, run.gains, metrics, dict(run.timer.times), run.history,
+                           run.s, run.norm, mm)

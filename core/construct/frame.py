@@ -1,0 +1,68 @@
+"""Inputs of a construction, checked and brought into the reference's unit-sphere frame, and
+the result taken back to the caller's frame."""
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from ..bounds import DirectionBounds
+from ..cameras import Cameras, fibonacci_cameras
+from ..mesh import Normalization, TriMesh
+from ..micromesh import MicroMesh
+from ..microtopology import balance_levels
+from ..settings import ConstructSettings
+from .types import ConstructError
+
+
+def device(name: str) -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name == "cuda" and not torch.cuda.is_available():
+        raise ConstructError("device 'cuda' requested but no CUDA device is available")
+    return torch.device(name)
+
+
+def check_inputs(reference: TriMesh, base: TriMesh) -> None:
+    if not isinstance(reference, TriMesh) or not isinstance(base, TriMesh):
+        raise ConstructError("reference and base must be core.mesh.TriMesh")
+    if base.n_faces > reference.n_faces * 4:
+        raise ConstructError("the base mesh has more faces than the reference; is it swapped?")
+
+
+def fixed_levels(base: TriMesh, levels) -> np.ndarray:
+    """The artist's per-face levels, checked (one per base face, integers 0..5) and balanced."""
+    lv = np.asarray(levels)
+    if lv.shape != (base.n_faces,):
+        raise ConstructError(f"levels must hold one value per base face ({base.n_faces}), "
+                             f"got shape {lv.shape}")
+    if lv.size and (not np.all(np.isfinite(lv)) or np.any(lv != np.round(lv))):
+        raise ConstructError("levels must be whole numbers")
+    lv = lv.astype(np.int64)
+    if lv.size and (lv.min() < 0 or lv.max() > 5):
+        raise ConstructError("levels must be within 0..5 (the hardware limit is 5)")
+    return balance_levels(base, lv)
+
+
+def similarity_matrix(norm: Normalization) -> np.ndarray:
+    m = np.eye(4)
+    m[:3, :3] *= norm.scale
+    m[:3, 3] = -norm.center * norm.scale
+    return m
+
+
+def unit_cameras(cameras: Cameras | None, norm: Normalization, s: ConstructSettings,
+                 resolution: int) -> Cameras:
+    if cameras is None:
+        return fibonacci_cameras(s.n_views, s.camera_radius, s.fov_y_deg, resolution)
+    cams = cameras.transformed(similarity_matrix(norm))
+    k = resolution / max(cams.width, cams.height)
+    return cams.with_resolution(max(8, round(cams.width * k)), max(8, round(cams.height * k)))
+
+
+def to_caller_frame(mm: MicroMesh, bounds: DirectionBounds, norm: Normalization
+                    ) -> tuple[MicroMesh, DirectionBounds]:
+    """Positions back through the normalisation; displacements and bounds scale by 1/s."""
+    base = mm.base.with_vertices(norm.invert(mm.base.vertices))
+    inv = 1.0 / norm.scale
+    out = MicroMesh(base, mm.directions, mm.levels, mm.displacements * inv, mm._topology)
+    return out, DirectionBounds(bounds.bias * inv, bounds.scale * inv)

@@ -1,0 +1,153 @@
+"""``construct``: the one entry point of a micro-mesh construction (method §2–§5).
+
+Base offsets and micro-displacements are optimised against rendered images of the reference,
+progressively subdividing with adaptive level of detail. Everything inside runs in the
+unit-sphere frame of the reference; inputs and the result are in the caller's frame. The
+phases: setup (:mod:`.frame`, :mod:`.scene`), initial baking, the loop (:mod:`.schedule`,
+:mod:`.step`, :mod:`.subdivision`), final levels (:mod:`.choose_levels`), bounds and metrics
+(:mod:`.finalise`).
+"""
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+import numpy as np
+import torch
+
+from ..cameras import Cameras
+from ..lod import micro_triangle_count
+from ..losses import mean_edge_length
+from ..memory import keep_large_allocations, release_memory
+from ..mesh import TriMesh, unit_sphere_normalization
+from ..micromesh import MicroMesh
+from ..render import warm_up
+from ..settings import ConstructSettings
+from ..threads import set_threads
+from .finalise import finalise
+from .frame import check_inputs, device as torch_device, fixed_levels, unit_cameras
+from .params import Parameters
+from .scene import Scene, bake
+from .schedule import Schedule
+from .state import RunState
+from .step import step
+from .subdivision import subdivide
+from .types import ConstructResult, Progress
+
+
+def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
+              settings: ConstructSettings,
+              progress: Callable[[Progress], None] | None = None,
+              should_stop: Callable[[], bool] | None = None,
+              levels: np.ndarray | None = None) -> ConstructResult:
+    """Build a micro-mesh of ``reference`` on ``base`` (both in the caller's frame).
+
+    ``cameras`` (caller's frame) or None for ``settings.n_views`` Fibonacci cameras. Raises
+    :class:`ConstructCancelled` within one iteration of ``should_stop()`` returning True.
+
+    ``levels`` (one per base face, 0..5; the artist's per-face override): balanced, then kept
+    fixed. No subdivision schedule and no LOD; the base is frozen (the result's base vertices
+    are the input's); displacements start from projection baking at those levels and are
+    optimised as usual (reparameterisation, L_sv, rendering loss) within the settings' budget.
+
+    Large freed buffers stay in the heap while it runs (``core.memory``; the policy stays set
+    for the process) and the free heap goes back to the OS when it returns.
+    """
+    keep_large_allocations()
+    try:
+        return _construct(reference, base, cameras, settings, progress, should_stop, levels)
+    finally:
+        release_memory()
+
+
+def _setup(reference, base, cameras, s, dev, should_stop, fixed) -> RunState:
+    norm = unit_sphere_normalization(reference.vertices)
+    ref_u = TriMesh(norm.apply(reference.vertices), reference.faces)
+    base_u = TriMesh(norm.apply(base.vertices), base.faces)
+    cams = unit_cameras(cameras, norm, s, s.train_resolution)
+    k = s.lod_resolution / max(cams.width, cams.height)
+    lod_cams = cams.with_resolution(max(8, round(cams.width * k)), max(8, round(cams.height * k)))
+    run = RunState(s, dev, norm, base_u, Scene(ref_u, cams, dev, s.antialias), lod_cams,
+                   should_stop or (lambda: False), fixed=fixed,
+                   bake_distance=2.0 * mean_edge_length(base_u.vertices, base_u.faces))
+    if s.lod_criterion == "chamfer":
+        from scipy.spatial import cKDTree
+        run.ref_tree = cKDTree(ref_u.vertices)
+    return run
+
+
+def _initial_micromesh(run: RunState) -> MicroMesh:
+    """Projection-baked displacements at the start level (the fixed levels, level 0 of the
+    progressive schedule, or the finest uniform level within the budget)."""
+    s, base = run.s, run.base
+    if run.fixed is not None:
+        # Fixed levels: always start from projection baking (the "re-bake" the artist
+        # asked for), then refine the displacements only.
+        mm = MicroMesh.flat(base, run.fixed)
+        run.level = int(run.fixed.max())
+        return mm.with_displacements(bake(mm, run.scene.ref, run.bake_distance))
+    start = 0 if s.progressive else s.max_level
+    while run.cost is not None and start > 0 and run.cost(np.full(base.n_faces, start)) > run.budget:
+        start -= 1             # no progressive schedule: the finest uniform level in budget
+    run.level = start
+    mm = MicroMesh.flat(base, np.full(base.n_faces, start))
+    d0 = bake(mm, run.scene.ref, run.bake_distance) if s.init_bake else np.zeros(mm.n_vertices)
+    return mm.with_displacements(d0)
+
+
+def _construct(reference, base, cameras, settings, progress, should_stop, levels) -> ConstructResult:
+    s = settings.validate()
+    check_inputs(reference, base)
+    fixed = fixed_levels(base, levels) if levels is not None else None
+    set_threads(s.threads)
+    dev = torch_device(s.device)
+    torch.manual_seed(s.seed)
+    rng = np.random.default_rng(s.seed)
+    # Compile the renderer's kernels first: a fresh checkout's JIT (about a minute) must not
+    # eat the time limit or distort the ETA.
+    warm_up(dev, antialias=s.antialias)
+    t_start = time.perf_counter()
+    run = _setup(reference, base, cameras, s, dev, should_stop, fixed)
+    run.timer.times["setup"] = time.perf_counter() - t_start
+    run.check_stop()
+    cams = run.scene.cams
+    with run.timer.phase("reference_images"):
+        target_all = run.scene.images(cams, "train")
+    with run.timer.phase("init"):
+        mm = _initial_micromesh(run)
+        params = Parameters(run.base, mm, s, run.device, frozen_base=run.fixed is not None)
+    if run.fixed is not None:
+        run.event(iteration=0, fixed_levels=True, micro_triangles=micro_triangle_count(run.fixed))
+    schedule = Schedule(s, t_start, fixed_levels=run.fixed is not None)
+    n_it, views = s.iterations, min(s.views_per_iter, len(cams))
+    t_loop, it_done = time.perf_counter(), 0
+    h = run.history
+    for it in range(n_it):
+        run.check_stop()
+        if schedule.out_of_time(it):
+            break
+        for _ in range(schedule.events_due(it)):
+            if run.level < s.max_level:
+                with run.timer.phase("subdivide"):
+                    subdivide(run, params, it)
+                run.check_stop()
+        with run.timer.phase("optimize"):
+            idx = np.sort(rng.choice(len(cams), views, replace=False))
+            loss, l_render, mse = step(params, s, cams.subset(idx), target_all[idx],
+                                       schedule.frozen(it))
+        p = 10 * np.log10(1.0 / mse) if mse > 0 else float("inf")
+        it_done += 1
+        h["iteration"].append(it)
+        h["loss"].append(loss)
+        h["render"].append(l_render)
+        h["psnr"].append(float(p))
+        if progress is not None:
+            el = time.perf_counter() - t_loop
+            progress(Progress("optimize", it + 1, n_it, loss, float(p),
+                              el / it_done * (n_it - it_done)))
+    run.check_stop()
+    result = finalise(run, params, reference, base, t_start, it_done, schedule.stopped_early)
+    if progress is not None:
+        progress(Progress("done", n_it, n_it, h["loss"][-1] if h["loss"] else 0.0,
+                          result.metrics.get("psnr", h["psnr"][-1] if h["psnr"] else 0.0), 0.0))
+    return result

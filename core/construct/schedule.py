@@ -1,0 +1,48 @@
+"""When things happen in the optimisation loop: subdivision events, the displacement-only
+phase, and the time limit (ours) that compresses the schedule."""
+from __future__ import annotations
+
+import time
+
+from ..settings import ConstructSettings
+
+
+class Schedule:
+    """Subdivision events (absolute iterations), the iteration that freezes the base, and the
+    time limit: once 60% of ``time_limit_s`` is spent the next subdivision is pulled forward,
+    at 90% the optimisation ends (leaving time for LOD, bounds, output)."""
+
+    def __init__(self, s: ConstructSettings, t_start: float, fixed_levels: bool):
+        self.events = sorted(set(int(i) for i in s.subdivide_at)) if s.progressive else []
+        self.freeze_at = s.base_freeze_iteration
+        if fixed_levels:
+            self.events, self.freeze_at = [], 0   # displacements only from the first iteration
+        self.limit = s.time_limit_s
+        self.t_start = t_start
+        self.last_event = -10
+        self.stopped_early = False
+
+    def out_of_time(self, it: int) -> bool:
+        """True when the loop must end now; may pull the next event forward."""
+        if self.limit <= 0:
+            return False
+        el = time.perf_counter() - self.t_start
+        if el > 0.9 * self.limit and not self.events:
+            self.stopped_early = True
+            return True
+        if el > 0.6 * self.limit and self.events and self.events[0] > it \
+                and it - self.last_event >= 10:
+            self.events[0] = it
+        return False
+
+    def events_due(self, it: int) -> int:
+        """How many subdivision events fall due at ``it`` (removed from the list)."""
+        n = 0
+        while self.events and it >= self.events[0]:
+            self.events.pop(0)
+            self.last_event = it
+            n += 1
+        return n
+
+    def frozen(self, it: int) -> bool:
+        return it >= self.freeze_at

@@ -1,0 +1,61 @@
+"""The explicit state of one construction: what every phase reads and updates."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ..cameras import Cameras
+from ..lod import micro_triangle_count
+from ..mesh import Normalization, TriMesh
+from ..metrics import PhaseTimer, storage_bytes
+from ..settings import ConstructSettings
+from .scene import Scene
+from .types import ConstructCancelled
+
+
+def budget_cost(s: ConstructSettings, n_base_vertices: int):
+    """(cost(levels), budget) of the LOD budget, or (None, 0)."""
+    if s.budget_bytes > 0:
+        return (lambda lv: storage_bytes(lv, n_base_vertices)["total"]), float(s.budget_bytes)
+    if s.budget_micro_triangles > 0:
+        return micro_triangle_count, float(s.budget_micro_triangles)
+    return None, 0.0
+
+
+@dataclass
+class RunState:
+    """Settings, frame, scene and bookkeeping of a construction in progress.
+
+    ``level``: the level the schedule has reached; ``gains``: per level, the per-face
+    relative gain that level brought; ``last_errors``: the per-face image errors measured at
+    the last subdivision; ``fixed``: the artist's levels (then no schedule, no LOD).
+    """
+
+    s: ConstructSettings
+    device: object
+    norm: Normalization
+    base: TriMesh                      # unit frame, as given
+    scene: Scene
+    lod_cams: Cameras
+    should_stop: Callable[[], bool]
+    fixed: np.ndarray | None = None
+    ref_tree: object = None
+    bake_distance: float = 0.0
+    level: int = 0
+    timer: PhaseTimer = field(default_factory=PhaseTimer)
+    history: dict = field(default_factory=lambda: {"iteration": [], "loss": [], "render": [],
+                                                   "psnr": [], "events": []})
+    gains: dict = field(default_factory=dict)
+    last_errors: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        self.cost, self.budget = budget_cost(self.s, self.base.n_vertices)
+
+    def check_stop(self) -> None:
+        if self.should_stop():
+            raise ConstructCancelled("construction cancelled")
+
+    def event(self, **entry) -> None:
+        self.history["events"].append(entry)
