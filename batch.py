@@ -1,11 +1,13 @@
 """Headless micro-mesh construction: ``python batch.py ARGS`` or ``blender -b --python batch.py -- ARGS``.
 
 With no ``--input`` it builds the built-in demo: a procedurally generated detailed mesh (an
-icosphere displaced by Blender's procedural textures, made at run time), decimated with
-Blender's Decimate modifier into a base and turned into a micro-mesh. With ``--input`` (one
-file or a folder of .ply / .obj / .glb / .gltf / .fbx / .blend) it does the same per input.
-Per input NAME it writes ``NAME.blend`` (holding ``NAME_micromesh``), ``NAME.metrics.json`` and
-with ``--ply`` ``NAME_micromesh.ply``. Bad input exits non-zero with a one-line reason.
+icosphere displaced by Blender's procedural textures, made at run time), decimated into a base
+(``core.base``: topology kept, error and triangle shape bounded) and turned into a micro-mesh
+within a storage budget. With ``--input`` (one file or a folder of .ply / .obj / .glb / .gltf /
+.fbx / .blend) it does the same per input: the same workflow as the add-on's panel
+(``operators.pipeline``). Per input NAME it writes ``NAME.blend`` (holding ``NAME_micromesh``
+and ``NAME_base``), ``NAME.metrics.json`` and with ``--ply`` ``NAME_micromesh.ply``. Bad input
+exits non-zero with a one-line reason.
 """
 from __future__ import annotations
 
@@ -44,7 +46,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="batch.py", description=__doc__.split("\n")[0])
     p.add_argument("--input", help="a mesh file or a folder of mesh files (default: the demo)")
     p.add_argument("--output", default="out", help="output folder (default: out)")
-    p.add_argument("--preset", default="fast", help="fast, default, quality or paper (default: fast)")
+    p.add_argument("--preset", default="default",
+                   help="fast, default, quality or paper (default: default)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a construction setting (repeatable)")
     p.add_argument("--method", default="auto", choices=("auto", "optimize", "projection"),
@@ -52,16 +55,70 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--level", type=int, default=None,
                    help="uniform level of the projection method (default: the preset's max_level)")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--target-faces", type=int, default=None, help="base triangles (Decimate)")
+    g.add_argument("--target-faces", type=int, default=None, help="base triangles")
     g.add_argument("--ratio", type=float, default=None,
-                   help="base triangles as a fraction of the input's (default 1/32)")
-    p.add_argument("--symmetry", choices=("X", "Y", "Z"), default=None)
+                   help="base triangles as a fraction of the input's (default 1/32; 0: as far "
+                        "as --base-error allows)")
+    p.add_argument("--base-error", type=float, default=None,
+                   help="bound on the base's distance to the input, relative to its bounding-box "
+                        "diagonal (default 1e-3; 0: none)")
+    p.add_argument("--base-method", choices=("collapse", "blender"), default="collapse",
+                   help="collapse: topology-keeping, error-bounded (default); blender: "
+                        "Blender's Decimate modifier")
+    p.add_argument("--symmetry", choices=("X", "Y", "Z"), default=None,
+                   help="symmetric decimation (with --base-method blender)")
+    p.add_argument("--budget", default=None, metavar="AMOUNT",
+                   help="storage budget: '2x' (micro-triangles per input face, the default), "
+                        "'150000' (micro-triangles) or '300kB' / '2MB' / '500000B' (bytes); "
+                        "'0': none")
     p.add_argument("--cameras", type=int, default=0,
                    help="place this many Fibonacci camera objects and construct with them")
     p.add_argument("--ply", action="store_true", help="also write NAME_micromesh.ply")
     p.add_argument("--threads", type=int, default=0, help="CPU threads (0: all usable cores)")
     p.add_argument("--demo-subdivisions", type=int, default=7, help=argparse.SUPPRESS)
     return p.parse_args(argv)
+
+
+def budget_overrides(text: str) -> list[str]:
+    """``--budget`` as settings overrides (one budget set, the others cleared)."""
+    t = text.strip().lower().replace(" ", "")
+    units = {"kb": 1e3, "mb": 1e6, "gb": 1e9, "b": 1.0}
+    try:
+        if t.endswith("x"):
+            values = {"budget_ratio": float(t[:-1])}
+        elif t[-1:] == "b":
+            unit = next(u for u in units if t.endswith(u))
+            values = {"budget_bytes": int(round(float(t[:-len(unit)]) * units[unit]))}
+        else:
+            values = {"budget_micro_triangles": int(t)}
+    except (ValueError, StopIteration):
+        raise BatchError(f"--budget {text!r}: give e.g. 2x, 150000 or 300kB") from None
+    amount = next(iter(values.values()))
+    if not amount >= 0 or amount != amount:
+        raise BatchError("--budget must not be negative")
+    out = {"budget_ratio": 0.0, "budget_micro_triangles": 0, "budget_bytes": 0}
+    out.update(values)
+    return [f"{k}={v}" for k, v in out.items()]
+
+
+def base_overrides(args: argparse.Namespace) -> list[str]:
+    """``--target-faces`` / ``--ratio`` / ``--base-error`` as settings overrides."""
+    out = []
+    if args.target_faces is not None:
+        if args.target_faces < 4:
+            raise BatchError("--target-faces must be at least 4")
+        out.append(f"base_faces={args.target_faces}")
+    if args.ratio is not None:
+        if not 0 <= args.ratio <= 1:
+            raise BatchError("--ratio must be within [0, 1]")
+        out += [f"base_ratio={args.ratio}", "base_faces=0"]
+    if args.base_error is not None:
+        if not 0 <= args.base_error < 1:
+            raise BatchError("--base-error must be within [0, 1)")
+        out.append(f"base_max_error={args.base_error}")
+    if args.symmetry and args.base_method != "blender":
+        raise BatchError("--symmetry needs --base-method blender")
+    return out
 
 
 def find_inputs(path: str | None) -> list[Path]:
@@ -151,20 +208,19 @@ def process(bpy, pkg, source, args, settings, out_dir: Path) -> dict:
     """Base mesh, cameras, construction, write-back, save: the add-on's steps, headless."""
     from micromesh.operators import bl_mesh, cameras_io, pipeline, writeback
 
+    from micromesh.core.base import target_faces
+
     name = source.name
     t0 = time.perf_counter()
     reference = bl_mesh.mesh_to_arrays(source)
-    if args.target_faces:
-        target = min(args.target_faces, reference.n_faces)
-    else:
-        target = max(4, int(round(reference.n_faces * (args.ratio or 1 / 32))))
-    base_tm = bl_mesh.decimate_object(source, target_faces=target, symmetry=args.symmetry)
-    base_obj = bpy.data.objects.new(f"{name}_base", bl_mesh.arrays_to_mesh(f"{name}_base",
-                                    base_tm.vertices, base_tm.faces))
-    bpy.context.scene.collection.objects.link(base_obj)
-    base_obj.micromesh_source, base_obj.display_type = source, "WIRE"
-    print(f"[{name}] reference {reference.n_faces} triangles -> base {base_tm.n_faces} "
-          f"({time.perf_counter() - t0:.1f} s)", flush=True)
+    base_tm = None
+    if args.base_method == "blender":
+        target = min(target_faces(reference.n_faces, settings.base_ratio, settings.base_faces),
+                     reference.n_faces)
+        base_tm = bl_mesh.decimate_object(source, target_faces=max(4, target),
+                                          symmetry=args.symmetry)
+        print(f"[{name}] reference {reference.n_faces} triangles -> base {base_tm.n_faces} "
+              f"(Blender's Decimate, {time.perf_counter() - t0:.1f} s)", flush=True)
     cams = None
     if args.cameras:
         coll = cameras_io.place_cameras(bpy.context.scene, reference, args.cameras,
@@ -184,8 +240,22 @@ def process(bpy, pkg, source, args, settings, out_dir: Path) -> dict:
 
     outcome = pipeline.run(reference, base_tm, cams, settings, progress, lambda: False,
                            level=args.level, method=args.method)
-    obj = writeback.write_result(bpy.context, source, base_obj, outcome)
     m = outcome.metrics
+    if "base" in m:
+        b = m["base"]
+        print(f"[{name}] reference {reference.n_faces} triangles -> base {b['faces']} "
+              f"(error {b['error_mean']:.2e} of the diagonal, isotropy {b['isotropy']:.3f}, "
+              f"{b['time_s']:.1f} s)", flush=True)
+        for note in b["notes"]:
+            print(f"[{name}] note: {note}", flush=True)
+    for warning in m.get("warnings", []):
+        print(f"[{name}] warning: {warning}", flush=True)
+    base = outcome.micromesh.base
+    base_obj = bpy.data.objects.new(f"{name}_base", bl_mesh.arrays_to_mesh(
+        f"{name}_base", base.vertices, base.faces))
+    bpy.context.scene.collection.objects.link(base_obj)
+    base_obj.micromesh_source, base_obj.display_type = source, "WIRE"
+    obj = writeback.write_result(bpy.context, source, base_obj, outcome)
     m["total_time_s"] = time.perf_counter() - t0
     out_dir.mkdir(parents=True, exist_ok=True)
     blend = out_dir / f"{name}.blend"
@@ -216,14 +286,13 @@ def main(argv: list[str] | None = None) -> int:
         from micromesh.core.settings import SettingsError, apply_overrides, preset
         from micromesh.core.threads import set_threads
 
+        extra = base_overrides(args) + (budget_overrides(args.budget) if args.budget else [])
         try:
-            settings = apply_overrides(preset(args.preset), args.overrides)
+            settings = apply_overrides(preset(args.preset), extra + args.overrides)
         except SettingsError as e:
             raise BatchError(str(e)) from None
         if args.level is not None and not 0 <= args.level <= 5:
             raise BatchError("--level must be within 0..5")
-        if args.ratio is not None and not 0 < args.ratio <= 1:
-            raise BatchError("--ratio must be in (0, 1]")
         import bpy
 
         set_threads(args.threads or settings.threads)

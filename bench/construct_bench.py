@@ -1,136 +1,135 @@
-"""Construction quality and speed: the optimiser's presets against the staged baseline.
+"""Construction quality: what a user gets from ``batch.py`` with no overrides, against
+NVlabs/micromesh-tools run with its defaults, both scored by the independent judge.
 
-For each mesh from ../shared/meshes: a base of about 1/32 of the input faces (Blender's
-Decimate modifier, cached under $MICROMESH_CACHE or /tmp/micromesh_bench_cache), a budget of
-about twice the input faces in micro-triangles. Rows:
-- ``staged``: uniform level 3 (64 micro-triangles per base face = 2x input), area-weighted
-  normals, projection baking, tight bounds, no optimisation (the simplest alternative);
-- ``<preset>``: ``core.construct.construct`` with that preset, the same base and the same
-  micro-triangle budget (levels up to 4 where the adaptive LOD spends the budget).
-Metrics are the method's §7 (24 Fibonacci views at 512², unit-sphere frame); ``time_s`` is the
-construction's wall time (reference images, optimisation, LOD, bounds; evaluation excluded).
+For each mesh of ../shared/meshes it runs ``python batch.py --input MESH --output DIR --ply``
+(plus the row's ``--set`` overrides, if any) in a subprocess, exactly as a user would, then
+``../shared/judge/judge.py`` on our tessellation and on micromesh-tools' output
+(``../shared/baselines/NAME/out_NAME.gltf``; judged once and cached). PSNR and geometric
+error are the judge's; shell volume (tight), storage (micromesh-tools' ``out_size`` formula),
+base isotropy and cracks are ours from the run's metrics for our row (the same definitions
+as the judge's) and the judge's for theirs. ``--staged`` adds our staged baseline
+(``--method projection``, level 3 uniform, on the same default base) as the simplest
+alternative.
 
-    python bench/construct_bench.py [--meshes rocker_arm_20k ...] [--presets default fast]
-        [--set key=value ...] [--ablations] [--json FILE]
+    python bench/construct_bench.py [--meshes NAME ...] [--set key=value ...] [--staged]
+        [--judge-python PATH] [--out DIR] [--json FILE]
+
+The judge needs its own environment (``python3 -m venv V && V/bin/pip install -r
+../shared/judge/requirements.txt``); give its interpreter with ``--judge-python`` or
+``$MICROMESH_JUDGE_PYTHON``.
 """
 from __future__ import annotations
 
 import json
 import os
+import subprocess
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from _common import MESHES, ROOT, parser, print_table
-from core.construct import construct, staged_baseline
-from core.mesh import TriMesh
-from core.meshio import read_mesh
-from core.settings import apply_overrides, preset
-from core.threads import set_threads
+from _common import MESHES, ROOT, parser, print_table, write_json
 
-DEFAULT_MESHES = ["rocker_arm_20k", "fertility_60k", "bunny_69k", "armadillo_100k", "igea_269k"]
-CACHE = Path(os.environ.get("MICROMESH_CACHE", "/tmp/micromesh_bench_cache"))
-
-ABLATIONS = {  # the paper's Tab. 2 rows (supplement §3) on the paper preset
-    "full": [],
-    "no_reparam": ["reparameterize=false", "laplacian_weight=1.0"],
-    "no_progressive": ["progressive=false"],   # uniform finest level within the budget
-    "no_L_iso": ["w_iso=0"],
-    "no_L_sv": ["w_sv=0"],
-    "chamfer_lod": ["lod_criterion=chamfer"],
-    "interpolate_init": ["init_new_levels=interpolate"],  # paper's init instead of baking
-    "init_zero": ["init_bake=false", "init_new_levels=interpolate"],  # no baking at all
-}
+SHARED = MESHES.parent
+BASELINES = SHARED / "baselines"
+JUDGE = SHARED / "judge" / "judge.py"
 
 
-def base_mesh(name: str, ref: TriMesh, target: int) -> tuple[TriMesh, str]:
-    """The decimated base (cached); Blender's Decimate where bpy imports."""
-    CACHE.mkdir(parents=True, exist_ok=True)
-    path = CACHE / f"{name}_{target}.npz"
-    if path.exists():
-        z = np.load(path)
-        return TriMesh(z["v"], z["f"]), str(z["how"])
-    sys.path.insert(0, str(ROOT))
-    import micromesh_path
-    micromesh_path.ensure_package()
-    from micromesh.operators.bl_mesh import decimate
-    v, f = decimate(ref.vertices, ref.faces, target_faces=target)
-    np.savez(path, v=v, f=f, how="blender_decimate")
-    return TriMesh(v, f), "blender_decimate"
+def judge(python: str, ref: Path, mm: Path, out_json: Path) -> dict:
+    """The judge's JSON for ``mm`` against ``ref`` (cached in ``out_json``)."""
+    if not out_json.exists():
+        r = subprocess.run([python, str(JUDGE), "--ref", str(ref), "--mm", str(mm), "--json",
+                            str(out_json), "--quiet"], capture_output=True, text=True)
+        if r.returncode != 0:
+            raise RuntimeError(f"judge failed on {mm}: {r.stderr[-2000:]}")
+    return json.loads(out_json.read_text())
 
 
-def record(mesh: str, method: str, m: dict) -> dict:
-    return {"mesh": mesh, "method": method, "psnr": round(m["psnr"], 3),
-            "shell_volume": round(m["shell_volume"], 5),
-            "geom_err": float(f"{m.get('geom_err', float('nan')):.4g}"),
-            "iso_base": round(m["iso_base"], 4), "bytes": int(m["bytes"]),
-            "micro_tris": int(m["micro_triangles"]), "time_s": round(m["time_s"], 1),
-            "cracks": int(m["cracks"])}
+def run_batch(mesh: Path, out: Path, overrides: list[str], extra: list[str]) -> tuple[dict, float]:
+    """batch.py on one mesh; (metrics of the run, wall seconds)."""
+    cmd = [sys.executable, str(ROOT / "batch.py"), "--input", str(mesh), "--output", str(out),
+           "--ply"] + extra + [a for o in overrides for a in ("--set", o)]
+    t0 = time.perf_counter()
+    r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    wall = time.perf_counter() - t0
+    (out / f"{mesh.stem}.log").write_text(r.stdout + r.stderr)
+    if r.returncode != 0:
+        raise RuntimeError(f"batch.py failed on {mesh.name}: {r.stderr[-2000:]}")
+    return json.loads((out / f"{mesh.stem}.metrics.json").read_text())["metrics"], wall
+
+
+def theirs(name: str, python: str, cache: Path) -> dict:
+    j = judge(python, MESHES / f"{name}.ply", BASELINES / name / f"out_{name}.gltf",
+              cache / f"theirs_{name}.json")
+    return {"psnr": j["render"]["psnr_full"], "geom_err": j["geom_error"]["ref_to_mm"]["avg"],
+            "shell": j["shell"]["shell_volume_tight"], "bytes": j["storage"]["mmt_formula_bytes"],
+            "iso_base": j["isotropy"]["iso_base"], "cracks": j["watertightness"]["crack_edges"],
+            "base_faces": j["counts"]["base_faces"], "micro_faces": j["counts"]["micro_faces_full"]}
+
+
+def ours(name: str, label: str, python: str, out: Path, overrides: list[str],
+         extra: list[str]) -> dict:
+    m, wall = run_batch(MESHES / f"{name}.ply", out, overrides, extra)
+    j = judge(python, MESHES / f"{name}.ply", out / f"{name}_micromesh.ply",
+              out / f"judge_{name}.json")
+    base = m.get("base", {})
+    topo_ok = base.get("topology_input") == base.get("topology_base") if base else None
+    return {"psnr": j["render"]["psnr_full"], "geom_err": j["geom_error"]["ref_to_mm"]["avg"],
+            "shell": m["shell_volume"], "bytes": m["bytes_mmt"], "iso_base": m["iso_base"],
+            "cracks": m["cracks"], "base_faces": m["base_faces"],
+            "micro_faces": m["micro_triangles"], "time_s": round(wall, 1),
+            "topology_kept": topo_ok, "warnings": m.get("warnings", []), "label": label}
 
 
 def main() -> None:
     p = parser(__doc__.splitlines()[0])
-    p.add_argument("--meshes", nargs="+", default=DEFAULT_MESHES)
-    p.add_argument("--presets", nargs="+", default=["default"])
+    p.add_argument("--meshes", nargs="+", default=None, help="default: every mesh in ../shared/meshes")
     p.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
-                   help="settings overrides applied to every preset row")
-    p.add_argument("--ablations", action="store_true",
-                   help="also run the paper preset's ablation rows (slow)")
-    p.add_argument("--ablation-preset", default="paper")
-    p.add_argument("--no-baseline", action="store_true")
+                   help="settings overrides for our row (a non-default row, labelled so)")
+    p.add_argument("--staged", action="store_true", help="add our staged baseline row")
+    p.add_argument("--judge-python", default=os.environ.get("MICROMESH_JUDGE_PYTHON",
+                                                            str(SHARED / "judge" / "venv" / "bin" / "python")))
+    p.add_argument("--out", default="/tmp/micromesh_construct_bench")
     args = p.parse_args()
-    set_threads(args.threads)
-    rows = []
-
-    def flush():
-        if args.json:
-            Path(args.json).write_text(json.dumps(rows, indent=1))
-
-    for name in args.meshes:
-        path = MESHES / f"{name}.ply"
-        if not path.exists():
-            print(f"skip {name}: {path} not found")
-            continue
-        ref = read_mesh(path)
-        base, how = base_mesh(name, ref, max(4, ref.n_faces // 32))
-        budget = 2 * ref.n_faces
-        print(f"{name}: {ref.n_faces} faces, base {base.n_faces} faces ({how}), "
-              f"budget {budget} micro-triangles", flush=True)
-        if not args.no_baseline:
-            b = staged_baseline(ref, base, 3, preset("default"))
-            rows.append(record(name, "staged", b.metrics))
-            print(rows[-1], flush=True)
-            flush()
-        runs = [(pr, list(args.set)) for pr in args.presets]
-        if args.ablations:
-            runs += [(f"{args.ablation_preset}:{k}", list(args.set) + v) for k, v in ABLATIONS.items()]
-        for label, overrides in runs:
-            pname = label.split(":")[0]
-            s = apply_overrides(preset(pname), [f"budget_micro_triangles={budget}"] + overrides)
-            t0 = time.perf_counter()
-            r = construct(ref, base, None, s)
-            rec = record(name, label, r.metrics)
-            rec["levels"] = r.metrics["levels_hist"]
-            rec["phases"] = {k: round(v, 1) for k, v in r.timings.items()}
+    if not MESHES.exists() or not BASELINES.exists():
+        sys.exit(f"skip: {MESHES} or {BASELINES} not found")
+    if not Path(args.judge_python).exists():
+        sys.exit(f"the judge's interpreter {args.judge_python} was not found (see --help)")
+    names = args.meshes or sorted(f.stem for f in MESHES.glob("*.ply"))
+    label = "default" if not args.set else "default+" + ",".join(args.set)
+    rows, records = [], []
+    for name in names:
+        out = Path(args.out) / label.replace("/", "_") / name
+        out.mkdir(parents=True, exist_ok=True)
+        t = theirs(name, args.judge_python, Path(args.out))
+        rows_here = [("ours", ours(name, label, args.judge_python, out, args.set, []))]
+        if args.staged:
+            sout = out / "staged"
+            sout.mkdir(exist_ok=True)
+            rows_here.append(("staged", ours(name, "staged", args.judge_python, sout, [],
+                                             ["--method", "projection", "--level", "3"])))
+        for kind, o in rows_here:
+            rec = {"mesh": name, "row": o["label"], "dpsnr": round(o["psnr"] - t["psnr"], 2),
+                   "psnr": round(o["psnr"], 2), "psnr_mmt": round(t["psnr"], 2),
+                   "storage": round(o["bytes"] / t["bytes"], 3),
+                   "shell": round(o["shell"] / t["shell"], 3),
+                   "iso_base": round(o["iso_base"], 3), "iso_mmt": round(t["iso_base"], 3),
+                   "geom_err": round(o["geom_err"] / t["geom_err"], 3),
+                   "cracks": o["cracks"], "topology": o["topology_kept"],
+                   "base_f": o["base_faces"], "base_f_mmt": t["base_faces"],
+                   "time_s": o["time_s"]}
             rows.append(rec)
-            print(rec, f"(wall incl. metrics {time.perf_counter() - t0:.0f}s)", flush=True)
-            flush()
-    cols = ["mesh", "method", "psnr", "shell_volume", "geom_err", "iso_base", "bytes",
-            "micro_tris", "time_s", "cracks"]
-    print_table(rows, cols, title="construction: presets vs staged baseline")
-    by = {}
-    for r in rows:
-        by.setdefault(r["method"], {})[r["mesh"]] = r["psnr"]
-    for meth, d in by.items():
-        if meth == "staged":
-            continue
-        common = [m for m in d if m in by.get("staged", {})]
-        if common:
-            gain = np.mean([d[m] - by["staged"][m] for m in common])
-            print(f"{meth}: mean PSNR gain over staged on {len(common)} meshes: {gain:+.2f} dB")
-    flush()
+            records.append({**rec, "ours": o, "theirs": t})
+            print(rec, flush=True)
+            write_json(args.json, records)
+    cols = ["mesh", "row", "dpsnr", "psnr", "psnr_mmt", "storage", "shell", "iso_base", "iso_mmt",
+            "geom_err", "cracks", "topology", "base_f", "base_f_mmt", "time_s"]
+    print_table(rows, cols, title="ours vs micromesh-tools (judge PSNR; storage, shell and "
+                                  "geometric error as ours / theirs)")
+    for lab in dict.fromkeys(r["row"] for r in rows):
+        d = np.array([r["dpsnr"] for r in rows if r["row"] == lab])
+        print(f"{lab}: mean ΔPSNR {d.mean():+.2f} dB, worst {d.min():+.2f} dB over {len(d)} meshes")
 
 
 if __name__ == "__main__":

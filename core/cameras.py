@@ -64,14 +64,20 @@ class Cameras:
         """The same cameras expressed in a new world frame (x_new = world_to_new @ x).
 
         For a similarity (e.g. unit-sphere normalisation) the view matrix keeps a uniform scale;
-        it is removed so that view stays rigid and depths are in the new frame's units.
+        it is removed so that view stays rigid and depths are in the new frame's units, and the
+        perspective's near and far planes are scaled with it (they are depths too), so the
+        cameras clip exactly what they clipped before, at any scale.
         """
         m = np.asarray(world_to_new, dtype=np.float64)
         cam_to_world = np.linalg.inv(self.view)
         new = m[None] @ cam_to_world
         s = np.cbrt(np.abs(np.linalg.det(new[:, :3, :3])))
         new[:, :3, :3] /= s[:, None, None]
-        return Cameras(np.linalg.inv(new), self.proj.copy(), self.width, self.height)
+        proj = self.proj.copy()
+        # OpenGL perspective: P[2,2] = (f+n)/(n-f) keeps its value when n and f scale together,
+        # P[2,3] = 2fn/(n-f) scales with them.
+        proj[:, 2, 3] *= s
+        return Cameras(np.linalg.inv(new), proj, self.width, self.height)
 
 
 def perspective(fov_y_deg: float, aspect: float, near: float, far: float) -> np.ndarray:

@@ -102,10 +102,12 @@ def in_optimization_lod(levels: np.ndarray, level: int, min_level: int, gains: n
 
     Below ``min_level`` every face goes on. From ``min_level``, a face at ``level`` goes on
     only if no face in its one-ring stopped earlier (all are ≥ ``level``) and its gain (the
-    improvement level ``level`` brought over ``level - 1``) exceeds ``tau``.
+    improvement level ``level`` brought over ``level - 1``) exceeds ``tau``. Level 0 has no
+    gain to judge (there is no level −1), so with ``min_level`` 0 every face still goes on
+    to level 1; Algorithm 2 may roll faces back to 0.
     """
     lv = np.asarray(levels, dtype=np.int64).copy()
-    if level < min_level:
+    if level < max(min_level, 1):
         lv[:] = level + 1
         return lv
     if gains is None or len(gains) != len(lv):

@@ -139,13 +139,19 @@ class MicroMesh:
     def with_levels(self, levels) -> "MicroMesh":
         """New levels (up or down, must be balanced), displacements resampled so the surface
         is kept: d = D·(X − P)/|D|² at each new vertex, X the old surface point."""
+        return self.resampled(levels)[0]
+
+    def resampled(self, levels) -> tuple["MicroMesh", np.ndarray]:
+        """:meth:`with_levels`, and a mask over the new micro-vertices: True where the vertex
+        was a micro-vertex before (it keeps its value exactly), False where it is new."""
         lv = _as_levels(self.base, levels)
         if not is_balanced(self.base, lv):
             raise MicroMeshError("with_levels needs balanced levels (use balance_levels)")
         if np.array_equal(lv, self.levels):
-            return self.with_displacements(self.displacements.copy())
+            return self.with_displacements(self.displacements.copy()), np.ones(self.n_vertices, bool)
         topo = build_topology(self.base, lv)
-        return MicroMesh(self.base, self.directions, lv, self._resample(topo), topo)
+        values, kept = self._resample(topo)
+        return MicroMesh(self.base, self.directions, lv, values, topo), kept
 
     def subdivided(self, mask: np.ndarray | None = None) -> "MicroMesh":
         """Faces in ``mask`` (bool (nf,) or face indices; default all) go up one level
@@ -160,14 +166,16 @@ class MicroMesh:
             lv[mk] += 1
         return self.with_levels(balance_levels(self.base, np.minimum(lv, MAX_LEVEL)))
 
-    def _resample(self, topo: MicroTopology) -> np.ndarray:
+    def _resample(self, topo: MicroTopology) -> tuple[np.ndarray, np.ndarray]:
         nb = topo.n_base_vertices
         out = np.zeros(topo.n_vertices)
+        kept = np.zeros(topo.n_vertices, bool)
         out[:nb] = self.displacements[:nb]  # base vertices keep their value (used or not)
+        kept[:nb] = True
         sel = np.flatnonzero(topo.vertex_face >= 0)
         sel = sel[sel >= nb]
         if len(sel) == 0:
-            return out
+            return out, kept
         idx, w = _locate(self.topology, topo.vertex_face[sel], topo.vertex_bary[sel])
         old = self.micro_vertex_positions()
         X = np.einsum("qk,qkc->qc", w, old[idx])
@@ -180,7 +188,8 @@ class MicroMesh:
         same = w[np.arange(len(k)), k] >= 1.0 - 1e-12
         d[same] = self.displacements[idx[np.arange(len(k)), k]][same]
         out[sel] = d
-        return out
+        kept[sel] = same
+        return out, kept
 
     # ---------------------------------------------------------------------- export
     def face_values(self, order: str = "umajor") -> tuple[np.ndarray, np.ndarray]:

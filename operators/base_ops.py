@@ -44,8 +44,24 @@ def base_arrays(base_obj: bpy.types.Object) -> tuple[TriMesh, np.ndarray]:
     return TriMesh(v @ m[:3, :3].T + m[:3, 3], f), poly.astype(np.int64)
 
 
+def link_base(context, src: bpy.types.Object, vertices: np.ndarray,
+              faces: np.ndarray) -> bpy.types.Object:
+    """``<source>_base`` holding the world-space triangles (an earlier base of the same source
+    is reused), shown as wire."""
+    name = f"{src.name}_base"
+    mesh = bl_mesh.arrays_to_mesh(name, vertices, faces)
+    obj, reused = bl_mesh.object_with_mesh(context, name, mesh, src,
+                                           reuse=lambda o: o.micromesh_source == src)
+    if reused:  # the arrays are in world space
+        obj.matrix_world = ((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1))
+    obj.micromesh_source = src
+    obj.display_type = "WIRE"
+    return obj
+
+
 class MICROMESH_OT_make_base(bpy.types.Operator):
-    """Make a triangulated low-poly base mesh from the source with Blender's Decimate modifier"""
+    """Make a triangulated low-poly base mesh from the source: a faithful edge collapse that
+    keeps the topology, or Blender's Decimate modifier"""
     bl_idname = "micromesh.make_base"
     bl_label = "Make Base Mesh"
     bl_options = {"REGISTER", "UNDO"}
@@ -57,27 +73,45 @@ class MICROMESH_OT_make_base(bpy.types.Operator):
     def execute(self, context):
         s = context.scene.micromesh
         src = source_object(context)
+        notes = []
         try:
-            kw = dict(target_faces=s.target_faces) if s.decimate_mode == "TARGET" else dict(ratio=s.ratio)
-            base = bl_mesh.decimate_object(
-                src, symmetry=None if s.symmetry == "NONE" else s.symmetry,
-                vertex_group=s.vertex_group, vertex_group_factor=s.vertex_group_factor,
-                invert_vertex_group=s.invert_vertex_group, **kw)
+            if s.base_method == "COLLAPSE":
+                base, notes = self._collapse(context, src)
+            else:
+                kw = dict(target_faces=s.target_faces) if s.decimate_mode == "TARGET" else \
+                    dict(ratio=s.ratio if s.decimate_mode == "RATIO" else 1 / 32)
+                base = bl_mesh.decimate_object(
+                    src, symmetry=None if s.symmetry == "NONE" else s.symmetry,
+                    vertex_group=s.vertex_group, vertex_group_factor=s.vertex_group_factor,
+                    invert_vertex_group=s.invert_vertex_group, **kw)
         except ValueError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
-        name = f"{src.name}_base"
-        mesh = bl_mesh.arrays_to_mesh(name, base.vertices, base.faces)
-        obj, reused = bl_mesh.object_with_mesh(context, name, mesh, src,
-                                               reuse=lambda o: o.micromesh_source == src)
-        if reused:  # the arrays are in world space
-            obj.matrix_world = ((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1))
-        obj.micromesh_source = src
-        obj.display_type = "WIRE"
+        obj = link_base(context, src, base.vertices, base.faces)
         s.source, s.base = src, obj
+        for line in notes:
+            self.report({"WARNING"}, line)
         self.report({"INFO"}, f"Base mesh '{obj.name}': {base.n_faces} triangles, "
                               f"{base.n_vertices} vertices")
         return {"FINISHED"}
+
+    @staticmethod
+    def _collapse(context, src) -> tuple[TriMesh, list[str]]:
+        """core.base with the panel's targets; its warnings and notes for the report."""
+        from ..core.base import build_base
+
+        s = context.scene.micromesh
+        wm = context.window_manager
+        wm.progress_begin(0, 100)
+        try:
+            built = build_base(bl_mesh.mesh_to_arrays(src),
+                               ratio=s.ratio if s.decimate_mode == "RATIO" else 0.0,
+                               faces=s.target_faces if s.decimate_mode == "TARGET" else 0,
+                               max_error=s.base_max_error, min_quality=s.base_min_quality,
+                               progress=lambda f: wm.progress_update(int(100 * f)))
+        finally:
+            wm.progress_end()
+        return built.mesh, built.warnings + built.report["notes"]
 
 
 class MICROMESH_OT_check_base(bpy.types.Operator):

@@ -28,15 +28,29 @@ class Prepared:
     work: object  # callable(progress, should_stop) -> writeback.Outcome
 
 
+def panel_overrides(s) -> dict:
+    """The panel's base-mesh targets and storage budget as settings."""
+    out = {"base_max_error": s.base_max_error, "base_min_quality": s.base_min_quality,
+           "base_ratio": s.ratio if s.decimate_mode == "RATIO" else 0.0,
+           "base_faces": s.target_faces if s.decimate_mode == "TARGET" else 0,
+           "budget_ratio": 0.0, "budget_micro_triangles": 0, "budget_bytes": 0}
+    if s.budget_mode == "RATIO":
+        out["budget_ratio"] = s.budget_value
+    elif s.budget_mode == "TRIANGLES":
+        out["budget_micro_triangles"] = int(round(s.budget_value))
+    elif s.budget_mode == "BYTES":
+        out["budget_bytes"] = int(round(s.budget_value))
+    return out
+
+
 def scene_settings(scene):
-    """The construction settings of the scene: preset, overrides, preferences (device, threads)."""
+    """The construction settings of the scene: preset, the panel's base and budget, overrides,
+    preferences (device, threads)."""
     from .. import preferences
 
     s = scene.micromesh
-    st = preset(s.preset)
-    over = s.overrides.split()
-    st = apply_overrides(st, over + [f"device={preferences.device()}"])
-    return st
+    st = apply_overrides(preset(s.preset), panel_overrides(s))
+    return apply_overrides(st, s.overrides.split() + [f"device={preferences.device()}"])
 
 
 def prepare(context, method: str = "auto") -> Prepared:
@@ -47,14 +61,9 @@ def prepare(context, method: str = "auto") -> Prepared:
         raise ValueError("no source: select a mesh object or set the source")
     base_obj = base_ops.base_object(context)
     reference = bl_mesh.mesh_to_arrays(src)
+    base, tri_poly = None, None         # no base object: the worker builds one (core.base)
     if base_obj is not None:
         base, tri_poly = base_ops.base_arrays(base_obj)
-    else:
-        from ..core.mesh import TriMesh
-
-        v, f = bl_mesh.decimate(reference.vertices, reference.faces,
-                                target_faces=max(4, min(s.target_faces, reference.n_faces)))
-        base, tri_poly = TriMesh(v, f), None
     levels = None
     if s.keep_levels:
         if base_obj is None or tri_poly is None:
@@ -89,11 +98,13 @@ def sync_state(scene, state: job.JobState) -> None:
 
 
 def finish(context, prep: Prepared, outcome: writeback.Outcome) -> bpy.types.Object:
-    obj = writeback.write_result(context, prep.source, prep.base_obj, outcome)
+    base_obj = prep.base_obj
+    if base_obj is None:                # the base the worker built: an object of its own
+        base = outcome.micromesh.base
+        base_obj = base_ops.link_base(context, prep.source, base.vertices, base.faces)
+    obj = writeback.write_result(context, prep.source, base_obj, outcome)
     s = context.scene.micromesh
-    s.source = prep.source
-    if prep.base_obj is not None:
-        s.base = prep.base_obj
+    s.source, s.base = prep.source, base_obj
     return obj
 
 

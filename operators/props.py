@@ -33,11 +33,29 @@ class MICROMESH_PG_settings(bpy.types.PropertyGroup):
                             description="The high-poly reference object")
     base: PointerProperty(type=bpy.types.Object, poll=_is_mesh, name="Base",
                           description="The low-poly base mesh")
-    decimate_mode: EnumProperty(name="Decimate By", default="TARGET", items=[
+    base_method: EnumProperty(name="Method", default="COLLAPSE", items=[
+        ("COLLAPSE", "Faithful", "Edge collapse that keeps the topology (genus, parts, holes), "
+                                 "bounds the distance to the source and keeps triangles well shaped"),
+        ("BLENDER", "Decimate", "Blender's Decimate modifier (symmetry, vertex group weights)")])
+    decimate_mode: EnumProperty(name="Decimate By", default="RATIO", items=[
+        ("RATIO", "Ratio", "A fraction of the source's triangles"),
         ("TARGET", "Triangles", "A target triangle count"),
-        ("RATIO", "Ratio", "A fraction of the source's triangles")])
+        ("ERROR", "Error", "As few triangles as the error bound allows")])
     ratio: FloatProperty(name="Ratio", default=1 / 32, min=1e-4, max=1.0, precision=4)
     target_faces: IntProperty(name="Triangles", default=1000, min=4)
+    base_max_error: FloatProperty(name="Max Error", default=1e-3, min=0.0, max=0.5, precision=5,
+                                  description="Bound on the base's distance to the source, as a "
+                                              "fraction of its bounding-box diagonal (0: none)")
+    base_min_quality: FloatProperty(name="Min Quality", default=0.4, min=0.0, max=0.99,
+                                    description="Floor on the shape (2r/R) of new base triangles")
+    budget_mode: EnumProperty(name="Budget", default="RATIO", items=[
+        ("RATIO", "× Input", "Micro-triangles per source triangle"),
+        ("TRIANGLES", "Micro-Triangles", "A micro-triangle count"),
+        ("BYTES", "Bytes", "Storage of the .bary + glTF buffers"),
+        ("NONE", "None", "No budget: the LOD's gain threshold alone decides")])
+    budget_value: FloatProperty(name="Amount", default=2.0, min=0.0,
+                                description="Micro-triangles per source triangle, micro-triangles "
+                                            "or bytes, by the budget kind")
     symmetry: EnumProperty(name="Symmetry", default="NONE", items=[
         ("NONE", "None", ""), ("X", "X", ""), ("Y", "Y", ""), ("Z", "Z", "")])
     vertex_group: StringProperty(name="Vertex Group", default="",
@@ -55,7 +73,7 @@ class MICROMESH_PG_settings(bpy.types.PropertyGroup):
                                     description="Construct with the cameras of the collection "
                                                 "(else the preset's Fibonacci cameras)")
     # ---- construct
-    preset: EnumProperty(name="Preset", items=PRESET_ITEMS, default="fast")
+    preset: EnumProperty(name="Preset", items=PRESET_ITEMS, default="default")
     overrides: StringProperty(name="Overrides", default="",
                               description="Extra settings as key=value, separated by spaces (e.g. iterations=200 subdivide_at=20,60)")
     level: IntProperty(name="Level", default=3, min=0, max=5,

@@ -73,6 +73,7 @@ def test_install_zip_and_run_operators(repo, tmp_path):
         bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=4)
         src = bpy.context.active_object
         s = bpy.context.scene.micromesh
+        s.decimate_mode, s.base_max_error = "TARGET", 0.0
         s.target_faces, s.camera_count, s.level = 80, 4, 1
         # No evaluation renders: the installed copy lives at a fresh path, so numba's on-disk
         # cache (keyed by source path) would recompile every kernel here.

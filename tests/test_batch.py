@@ -51,7 +51,7 @@ def inputs(tmp_path_factory):
 def test_batch_over_a_folder(inputs, tmp_path):
     out = tmp_path / "out"
     r = run_batch("--input", inputs, "--output", out, "--method", "projection", "--level", "2",
-                  "--target-faces", "80", "--ply")
+                  "--target-faces", "80", "--base-error", "0", "--ply")
     assert r.returncode == 0, r.stdout + r.stderr
     assert "done: 4/4" in r.stdout
     for name in ("ball", "monkey", "ring", "can"):
@@ -84,6 +84,10 @@ def test_batch_over_a_folder(inputs, tmp_path):
     (["--set", "iterations=many"], "iterations"),
     (["--set", "nonsense=1"], "unknown setting"),
     (["--level", "9"], "--level"),
+    (["--budget", "lots"], "--budget"),
+    (["--budget", "-2x"], "--budget"),
+    (["--ratio", "1.5"], "--ratio"),
+    (["--symmetry", "X"], "--symmetry"),
 ])
 def test_bad_input_exits_with_one_line(inputs, tmp_path, args, reason):
     args = [a.replace("{inputs}", str(inputs)) for a in args]
@@ -100,8 +104,42 @@ def test_a_broken_file_in_a_folder_fails_alone(inputs, tmp_path):
     (folder / "broken.ply").write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 3\n")
     (folder / "ball.ply").write_bytes((inputs / "ball.ply").read_bytes())
     r = run_batch("--input", folder, "--output", tmp_path / "out", "--method", "projection",
-                  "--level", "1", "--target-faces", "40")
+                  "--level", "1", "--target-faces", "40", "--base-error", "0")
     assert r.returncode == 1, r.stdout + r.stderr
     assert "done: 1/2" in r.stdout and (tmp_path / "out" / "ball.blend").exists()
     lines = _error_lines(r.stderr)
     assert len(lines) == 1 and "broken" in lines[0]
+
+
+def test_budget_and_base_options_become_settings():
+    import batch
+
+    assert batch.budget_overrides("2.5x") == ["budget_ratio=2.5", "budget_micro_triangles=0",
+                                              "budget_bytes=0"]
+    assert "budget_micro_triangles=150000" in batch.budget_overrides("150000")
+    assert "budget_bytes=300000" in batch.budget_overrides("300kB")
+    assert "budget_bytes=2000000" in batch.budget_overrides("2 MB")
+    assert "budget_ratio=0.0" in batch.budget_overrides("0")          # no budget at all
+    args = batch.parse_args(["--ratio", "0.05", "--base-error", "2e-3"])
+    assert batch.base_overrides(args) == ["base_ratio=0.05", "base_faces=0", "base_max_error=0.002"]
+
+
+def test_defaults_build_a_faithful_base_within_the_budget(inputs, tmp_path):
+    """No options but the quick preset: the base keeps the torus's genus, the micro-mesh
+    spends about twice the input's faces, and the .blend holds the base it was built on."""
+    out = tmp_path / "out"
+    src = tmp_path / "in"
+    src.mkdir()
+    (src / "ring.glb").write_bytes((inputs / "ring.glb").read_bytes())
+    r = run_batch("--input", src / "ring.glb", "--output", out, "--preset", "fast",
+                  "--set", "iterations=30", "--set", "subdivide_at=5,10,20", timeout=600)
+    assert r.returncode == 0, r.stdout + r.stderr
+    m = json.loads((out / "ring.metrics.json").read_text())["metrics"]
+    assert m["base"]["topology_base"] == m["base"]["topology_input"]
+    assert m["base"]["topology_base"]["genus"] == 1 and m["warnings"] == []
+    assert 1.5 * m["reference_faces"] <= m["micro_triangles"] <= 2 * m["reference_faces"]
+    assert "-> base" in r.stdout
+    bpy.ops.wm.open_mainfile(filepath=str(out / "ring.blend"))
+    base = bpy.data.objects["ring_base"]
+    assert len(base.data.polygons) == m["base_faces"]
+    bpy.ops.wm.read_factory_settings(use_empty=True)

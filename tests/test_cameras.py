@@ -75,9 +75,40 @@ def test_transformed_keeps_projection_of_points():
     m = np.eye(4); m[:3, :3] *= scale; m[:3, 3] = shift
     moved = cams.transformed(m)
     pts = np.random.default_rng(1).normal(size=(10, 3)) * 0.5
-    a = project(cams, pts)[..., :2]
-    b = project(moved, pts * scale + shift)[..., :2]
-    assert np.allclose(a, b, atol=1e-9)
+    a = project(cams, pts)
+    b = project(moved, pts * scale + shift)
+    assert np.allclose(a, b, atol=1e-9)       # depth too: near and far scale with the frame
+
+
+@pytest.mark.parametrize("radius", [1e-3, 1.0, 1e5])
+def test_scene_cameras_see_the_whole_object_at_any_scale(radius):
+    """Cameras placed as the add-on places them (clip planes in world units around an object
+    of that size), brought into the unit frame as a construction does: the object is seen
+    whole in every view, the same as at radius 1."""
+    import torch
+
+    from core import primitives
+    from core.construct.frame import unit_cameras
+    from core.mesh import unit_sphere_normalization
+    from core.render import render
+    from core.settings import preset
+
+    v, f = primitives.icosphere(8)
+    center = np.array([5.0, -3.0, 2.0]) * radius
+    world = v * radius + center
+    dist = 3.5 * radius
+    dirs = fibonacci_cameras(6).eye / 3.5
+    poses = np.linalg.inv(np.stack([look_at(center + dist * d, center, supplement_up(d))
+                                    for d in dirs]))
+    cams = cameras_from_poses(poses, 35.0, 64, 64, near=0.01 * dist, far=4.0 * dist)
+    norm = unit_sphere_normalization(world)
+    unit = unit_cameras(cams, norm, preset("fast"), 64)
+    mask = render(torch.as_tensor(norm.apply(world), dtype=torch.float32), torch.as_tensor(f),
+                  unit, kind="mask", antialias=False)
+    ref = render(torch.as_tensor(v, dtype=torch.float32), torch.as_tensor(f),
+                 fibonacci_cameras(6, fov_y_deg=35.0, width=64), kind="mask", antialias=False)
+    assert ref.sum() > 0
+    assert torch.equal(mask.sum(dim=(1, 2, 3)), ref.sum(dim=(1, 2, 3)))
 
 
 def test_bad_cameras():

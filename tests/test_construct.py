@@ -71,10 +71,11 @@ def test_short_run_beats_staged_baseline(scene):
 
 def test_subdivision_keeps_surface(scene):
     ref, base = scene
-    s = small(iterations=6, subdivide_at=(5,), max_level=1, lr_base=1e-12, lr_disp=1e-12,
-              init_new_levels="interpolate", compute_metrics=False, w_sv=0, w_iso=0)
-    before = construct(ref, base, None, small(iterations=5, subdivide_at=(), max_level=0,
-                                              lr_base=1e-12, lr_disp=1e-12, compute_metrics=False))
+    kw = dict(lr_base=1e-12, lr_disp=1e-12, compute_metrics=False, base_warm_up=False,
+              final_fit=False)
+    s = small(iterations=6, subdivide_at=(5,), max_level=1, init_new_levels="interpolate",
+              w_sv=0, w_iso=0, **kw)
+    before = construct(ref, base, None, small(iterations=5, subdivide_at=(), max_level=0, **kw))
     after = construct(ref, base, None, s)
     assert (after.micromesh.levels == 1).all() and (before.micromesh.levels == 0).all()
     # Every micro-vertex of the subdivided mesh lies on the level-0 displaced surface.
@@ -82,6 +83,57 @@ def test_subdivision_keeps_surface(scene):
     old_surface = before.micromesh_unit.tessellate().to_trimesh()
     _, _, dist = nearest_points(after.micromesh_unit.micro_vertex_positions(), old_surface)
     assert dist.max() < 1e-5
+
+
+def test_subdivision_keeps_optimised_displacements(scene):
+    """At a subdivision the micro-vertices that existed keep their (optimised) values; only
+    the new ones are baked."""
+    import torch
+
+    from core.construct.params import Parameters
+    from core.construct.run import _initial_micromesh, _setup
+    from core.construct.subdivision import subdivide
+
+    ref, base = scene
+    s = small(base_warm_up=False, max_level=2)
+    run = _setup(ref, base, None, s, torch.device("cpu"), None, None)
+    mm = _initial_micromesh(run)                     # level 0, baked
+    rng = np.random.default_rng(0)
+    optimised = mm.with_displacements(mm.displacements + 0.01 * rng.standard_normal(mm.n_vertices))
+    params = Parameters(run.base, optimised, s, run.device)
+    subdivide(run, params, 5)
+    new = params.micromesh()
+    assert (new.levels == 1).all() and run.level == 1
+    nb = base.n_vertices                             # level 0's micro-vertices: the base's
+    np.testing.assert_allclose(new.displacements[:nb], optimised.displacements, atol=1e-6)
+    rebaked = mm.with_levels(new.levels).displacements
+    assert np.abs(new.displacements[:nb] - rebaked[:nb]).max() > 5e-3
+
+
+def test_base_moves_and_its_isotropy_rises(scene):
+    """With L_iso a badly shaped base (on the right surface, vertices slid along it)
+    measurably moves and gets better shaped."""
+    from core.metrics import isotropy
+
+    ref, _ = scene
+    bv, bf = icosphere(2)
+    rng = np.random.default_rng(5)
+    slid = bv + 0.12 * rng.standard_normal(bv.shape)
+    slid /= np.linalg.norm(slid, axis=1, keepdims=True)
+    base = TriMesh(slid * 2.0 + 1.0, bf)
+    r = construct(ref, base, None, small(w_iso=1.0, lr_base=2e-3))
+    moved = np.linalg.norm(r.micromesh.base.vertices - base.vertices, axis=1)
+    edge = np.linalg.norm(base.vertices[base.edges[:, 0]] - base.vertices[base.edges[:, 1]], axis=1)
+    assert moved.mean() > 0.02 * edge.mean()
+    assert r.metrics["iso_base"] > isotropy(base.vertices, base.faces) + 0.01
+
+
+def test_min_level_zero(scene):
+    ref, base = scene
+    for lod in ("in_optim", "post"):
+        r = construct(ref, base, None, small(lod=lod, min_level=0, max_level=2,
+                                             budget_micro_triangles=3 * base.n_faces))
+        assert r.micromesh.levels.max() <= 2 and r.metrics["micro_triangles"] <= 3 * base.n_faces
 
 
 def test_cancel_within_one_iteration(scene):
@@ -171,8 +223,8 @@ def test_fixed_levels_refine_displacements_only(scene):
     raw = rng.integers(0, 3, base.n_faces)
     want = balance_levels(base, raw)
     assert not np.array_equal(want, raw)          # the balancing is part of what is checked
-    s = small(iterations=30, lod="in_optim", budget_micro_triangles=base.n_faces)
-    start = construct(ref, base, None, small(iterations=0), levels=raw)   # the baked start
+    s = small(iterations=30, lod="in_optim", budget_micro_triangles=base.n_faces, final_fit=False)
+    start = construct(ref, base, None, small(iterations=0, final_fit=False), levels=raw)  # baked
     r = construct(ref, base, None, s, levels=raw)
     for res in (start, r):
         np.testing.assert_array_equal(res.micromesh.levels, want)        # kept, no LOD/budget

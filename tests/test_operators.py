@@ -33,6 +33,7 @@ def scene():
     mod = src.modifiers.new("disp", "DISPLACE")
     mod.texture, mod.strength = tex, 0.2
     s = bpy.context.scene.micromesh
+    s.decimate_mode, s.base_max_error = "TARGET", 0.0
     s.target_faces, s.level, s.camera_count = 120, 2, 8
     return bpy.context.scene
 
@@ -54,9 +55,9 @@ def test_make_base(scene):
     bw = bl_mesh.mesh_to_arrays(base)  # world space, follows the displaced, moved source
     assert np.allclose(bw.vertices.mean(0), src_world.vertices.mean(0), atol=0.15)
     assert bw.is_closed_manifold and bw.genus == 0
-    # Ratio mode and symmetry go through the same modifier.
+    # Blender's Decimate stays available: ratio mode and symmetry go through the modifier.
     s = scene.micromesh
-    s.decimate_mode, s.ratio, s.symmetry = "RATIO", 0.05, "X"
+    s.base_method, s.decimate_mode, s.ratio, s.symmetry = "BLENDER", "RATIO", 0.05, "X"
     assert bpy.ops.micromesh.make_base() == {"FINISHED"}
     assert s.base == base and abs(len(base.data.polygons) - 0.05 * src_world.n_faces) < 20
 
@@ -164,6 +165,26 @@ def test_construct_optimizer_tiny_budget(scene):
     assert out.method == "optimize" and out.history
     assert out.settings["iterations"] == 6
     assert np.isfinite(json.loads(res["micromesh_metrics"])["psnr"])
+
+
+def test_construct_without_a_base_builds_one(scene):
+    """Construct with no base object: the worker builds the base (core.base, the panel's
+    targets) and the result comes with its base object, topology kept."""
+    pytest.importorskip("micromesh.core.construct")
+    s = scene.micromesh
+    src = bpy.context.active_object
+    s.source, s.base = src, None
+    s.decimate_mode, s.ratio, s.budget_mode, s.budget_value = "RATIO", 1 / 16, "RATIO", 1.0
+    s.overrides = ("iterations=6 subdivide_at=2,4 max_level=2 train_resolution=48 "
+                   "views_per_iter=2 eval_views=2 eval_resolution=48 lod_resolution=48")
+    assert "rock_base" not in bpy.data.objects
+    assert bpy.ops.micromesh.construct(method="OPTIMIZE") == {"FINISHED"}
+    base = bpy.data.objects["rock_base"]
+    assert s.base == base and base.micromesh_source == src
+    out = _check_consistent(bpy.data.objects["rock_micromesh"], base)
+    m = out.metrics
+    assert m["base"]["topology_base"] == m["base"]["topology_input"] and m["warnings"] == []
+    assert m["micro_triangles"] <= bl_mesh.mesh_to_arrays(src).n_faces      # budget 1x
 
 
 def test_save_reload_and_preview_strength(scene, tmp_path):

@@ -93,7 +93,7 @@ def test_shapes_and_kinds(sphere):
     cams = fibonacci_cameras(2, width=32)
     r = rasterize(v, f, cams)
     assert isinstance(r, Raster)
-    for kind, c in (("shaded", 3), ("normal", 3), ("mask", 1), ("depth", 1)):
+    for kind, c in (("shaded", 3), ("flat", 3), ("normal", 3), ("mask", 1), ("depth", 1)):
         img = render(v, f, cams, kind=kind, raster=r)
         assert img.shape == (2, 32, 32, c) and torch.isfinite(img).all()
         hard = render(v, f, cams, kind=kind, raster=r, antialias=False)

@@ -36,7 +36,7 @@ def fd_check(fn, verts: torch.Tensor, coords: list[tuple[int, int]], eps: float 
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-@pytest.mark.parametrize("kind", ["shaded", "normal", "depth"])
+@pytest.mark.parametrize("kind", ["shaded", "flat", "normal", "depth"])
 def test_interpolation_gradients_match_finite_differences(backend, kind):
     v, f = tensors(*icosphere(1, noise=0.05), dtype=torch.float64)
     cams = fibonacci_cameras(2, width=20)
@@ -51,7 +51,7 @@ def test_interpolation_gradients_match_finite_differences(backend, kind):
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-@pytest.mark.parametrize("kind", ["shaded", "mask"])
+@pytest.mark.parametrize("kind", ["shaded", "flat", "mask"])
 def test_antialias_gradients_match_finite_differences(backend, kind):
     # a single triangle in front of the background, and a sphere with occlusion edges
     tri_v = torch.tensor([[-0.61, -0.43, 0.0], [0.57, -0.52, 0.1], [0.07, 0.66, -0.1]], dtype=torch.float64)
@@ -158,9 +158,13 @@ def test_empty_views_inside_camera_and_degenerate_faces_give_no_nans(backend):
         loss = render_loss(x, f, cams, target, raster=r, backend=backend)
         loss.backward()
         assert torch.isfinite(loss) and torch.isfinite(x.grad).all()
-        for kind in ("normal", "depth", "mask"):
+        for kind in ("normal", "depth", "mask", "flat"):
             img = render(x, f, cams, kind=kind, raster=r, backend=backend)
             assert torch.isfinite(img).all()
+        flat = render_loss(x, f, cams, target, raster=r, kind="flat", backend=backend)
+        x.grad = None
+        flat.backward()
+        assert torch.isfinite(flat) and torch.isfinite(x.grad).all()
         err = pixel_error(x, f, cams, target, raster=r, backend=backend)
         assert err.shape == (len(cams), 24, 24) and torch.isfinite(err).all()
 
@@ -178,7 +182,13 @@ def test_numba_and_torch_backends_agree():
         res.append((float(loss.detach()), x.grad))
     assert abs(res[0][0] - res[1][0]) < 1e-12
     torch.testing.assert_close(res[0][1], res[1][1], rtol=1e-9, atol=1e-12)
-    for kind in ("shaded", "normal", "mask", "depth"):  # the un-fused antialiased images too
+    flat = []
+    for be in BACKENDS:
+        x = v.clone().requires_grad_(True)
+        render_loss(x, f, cams, target, raster=r, kind="flat", backend=be).backward()
+        flat.append(x.grad)
+    torch.testing.assert_close(flat[0], flat[1], rtol=1e-9, atol=1e-12)
+    for kind in ("shaded", "flat", "normal", "mask", "depth"):  # the un-fused images too
         a, b = (render(v, f, cams, kind=kind, raster=r, backend=be) for be in BACKENDS)
         torch.testing.assert_close(a, b, rtol=1e-9, atol=1e-12)
 

@@ -53,17 +53,24 @@ class MICROMESH_PT_base(_Panel, bpy.types.Panel):
     def draw(self, context):
         s = context.scene.micromesh
         layout = self.layout
+        layout.prop(s, "base_method", expand=True)
         layout.prop(s, "decimate_mode", expand=True)
-        layout.prop(s, "target_faces" if s.decimate_mode == "TARGET" else "ratio")
-        row = layout.row()
-        row.prop(s, "symmetry", expand=True)
-        src = s.source or context.active_object
-        if src is not None and src.type == "MESH":
-            layout.prop_search(s, "vertex_group", src, "vertex_groups")
-            if s.vertex_group:
-                row = layout.row(align=True)
-                row.prop(s, "vertex_group_factor")
-                row.prop(s, "invert_vertex_group", toggle=True)
+        if s.decimate_mode != "ERROR":
+            layout.prop(s, "target_faces" if s.decimate_mode == "TARGET" else "ratio")
+        if s.base_method == "COLLAPSE":
+            row = layout.row(align=True)
+            row.prop(s, "base_max_error")
+            row.prop(s, "base_min_quality")
+        else:
+            row = layout.row()
+            row.prop(s, "symmetry", expand=True)
+            src = s.source or context.active_object
+            if src is not None and src.type == "MESH":
+                layout.prop_search(s, "vertex_group", src, "vertex_groups")
+                if s.vertex_group:
+                    row = layout.row(align=True)
+                    row.prop(s, "vertex_group_factor")
+                    row.prop(s, "invert_vertex_group", toggle=True)
         layout.operator("micromesh.make_base", icon="MOD_DECIM")
         layout.operator("micromesh.check_base", icon="VIEWZOOM")
         if s.check_report:
@@ -104,6 +111,10 @@ class MICROMESH_PT_construct(_Panel, bpy.types.Panel):
             op = row.operator("micromesh.apply_preset", text=name.title(),
                               depress=(s.preset == name))
             op.preset = name
+        row = layout.row(align=True)
+        row.prop(s, "budget_mode", text="")
+        if s.budget_mode != "NONE":
+            row.prop(s, "budget_value")
         layout.prop(s, "level")
         layout.prop(s, "overrides")
         if job.active_job() is not None:
@@ -128,6 +139,8 @@ class MICROMESH_PT_result(_Panel, bpy.types.Panel):
         m = json.loads(obj.get("micromesh_metrics", "{}"))
         col = self.layout.column(align=True)
         col.label(text=obj.name, icon="MESH_DATA")
+        for warning in m.get("warnings") or []:
+            col.label(text=warning, icon="ERROR")
         for key, label, fmt in (("psnr", "PSNR", "{:.2f} dB"), ("shell_volume", "Shell volume", "{:.4g}"),
                                 ("geom_err", "Geometric error", "{:.3g}"), ("iso_base", "Isotropy", "{:.3f}"),
                                 ("bytes", "Bytes", "{:,}"), ("micro_triangles", "Micro-triangles", "{:,}"),

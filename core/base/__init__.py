@@ -1,8 +1,8 @@
 """Base-mesh building: topology-keeping, error- and quality-bounded edge-collapse decimation
 (:func:`build_base`), with a report of what it made."""
-from .build import BaseError, BaseMesh, build_base, target_faces
+from .build import BaseError, BaseMesh, base_for, build_base, target_faces
 from .decimate import DecimateCancelled, decimate
 from .topology import Topology, differences, topology
 
-__all__ = ["BaseError", "BaseMesh", "DecimateCancelled", "Topology", "build_base", "decimate",
-           "differences", "target_faces", "topology"]
+__all__ = ["BaseError", "BaseMesh", "DecimateCancelled", "Topology", "base_for", "build_base",
+           "decimate", "differences", "target_faces", "topology"]

@@ -2,7 +2,9 @@
 ``batch.py``.
 
 It works in the reference's unit-sphere frame, with coordinates rounded to float32 there, so
-copies of a mesh at any scale or position give the same base (up to that similarity). The
+copies of a mesh at any scale or position give the same base (up to that similarity), and on
+the reference with exactly coincident vertices merged (split UV seams or flat-shaded edges of
+an imported file are one surface). The
 target is a face count, a ratio of the input's faces, or only the error bound (both 0).
 Afterwards it measures what it made: the distance from every reference vertex to the base
 (relative to the bounding-box diagonal), the isotropy, and the topology against the input's,
@@ -19,6 +21,7 @@ import numpy as np
 from ..closest import ClosestPointIndex
 from ..mesh import TriMesh, unit_sphere_normalization
 from ..metrics import isotropy
+from ..settings import ConstructSettings
 from .decimate import decimate
 from .topology import differences, topology
 
@@ -51,6 +54,18 @@ def target_faces(n_faces: int, ratio: float = 0.0, faces: int = 0) -> int:
     return 1
 
 
+def welded(mesh: TriMesh) -> TriMesh:
+    """``mesh`` with exactly coincident vertices merged and the faces that then repeat a
+    vertex dropped: files often split vertices along UV seams or flat-shaded edges, which
+    would make every patch a part of its own."""
+    v, inv = np.unique(mesh.vertices, axis=0, return_inverse=True)
+    f = inv.reshape(-1)[mesh.faces]
+    f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])]
+    if len(f) == 0:
+        raise BaseError("the mesh has no faces with three distinct vertices")
+    return TriMesh(v, f)
+
+
 def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
                max_error: float = 1e-3, min_quality: float = 0.4,
                progress: Callable[[float], None] | None = None,
@@ -74,7 +89,7 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
         raise BaseError("min_quality must be within [0, 1)")
     target = target_faces(reference.n_faces, ratio, faces)
     norm = unit_sphere_normalization(reference.vertices)
-    unit = TriMesh(norm.apply(reference.vertices).astype(np.float32), reference.faces)
+    unit = welded(TriMesh(norm.apply(reference.vertices).astype(np.float32), reference.faces))
     diag = unit.bbox_diagonal
     n0 = reference.n_faces
 
@@ -91,11 +106,11 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
     w = unit.vertex_areas[used]
     d = dist[used] / diag
     topo_in, topo_base = topology(unit), topology(base_unit)
-    warnings = differences(topo_in, topo_base)
+    notes = []
     if base_unit.n_faces > target and target > 1:
-        warnings.append(f"the base stopped at {base_unit.n_faces} faces instead of {target}: "
-                        "no further collapse keeps the error bound, the topology and the "
-                        "triangle shapes")
+        notes.append(f"the base stopped at {base_unit.n_faces} faces instead of {target}: "
+                     "no further collapse keeps the error bound, the topology and the "
+                     "triangle shapes")
     rep = {"target_faces": target if target > 1 else None, "faces": base_unit.n_faces,
            "vertices": base_unit.n_vertices, "stopped": dec.stopped,
            "collapses": dec.collapses, "rejected": dec.rejected,
@@ -103,5 +118,15 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
            "error_mean": float((d * w).sum() / max(w.sum(), 1e-300)),
            "error_max": float(d.max()), "isotropy": isotropy(base_unit.vertices, base_unit.faces),
            "topology_input": topo_in.as_dict(), "topology_base": topo_base.as_dict(),
-           "warnings": warnings, "time_s": time.perf_counter() - t0}
+           "warnings": differences(topo_in, topo_base), "notes": notes,
+           "time_s": time.perf_counter() - t0}
     return BaseMesh(TriMesh(norm.invert(base_unit.vertices), base_unit.faces), rep)
+
+
+def base_for(reference: TriMesh, s: ConstructSettings,
+             progress: Callable[[float], None] | None = None,
+             should_stop: Callable[[], bool] | None = None) -> BaseMesh:
+    """:func:`build_base` with the targets of construction settings (``base_*``)."""
+    return build_base(reference, ratio=s.base_ratio, faces=s.base_faces,
+                      max_error=s.base_max_error, min_quality=s.base_min_quality,
+                      progress=progress, should_stop=should_stop)

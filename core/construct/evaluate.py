@@ -8,7 +8,7 @@ from ..bounds import DirectionBounds, shell_volume, tight_bounds
 from ..cameras import fibonacci_cameras
 from ..lod import micro_triangle_count
 from ..mesh import TriMesh
-from ..metrics import crack_edges, geometric_error, isotropy, storage_bytes
+from ..metrics import crack_edges, geometric_error, isotropy, mmt_formula_bytes, storage_bytes
 from ..micromesh import MicroMesh
 from ..render import reference_images, render
 from ..settings import ConstructSettings
@@ -35,9 +35,9 @@ def evaluate(mm_unit: MicroMesh, reference_unit: TriMesh, s: ConstructSettings,
     with torch.no_grad():
         for b in range(0, len(cams), 4):
             sub = cams.subset(np.arange(b, min(b + 4, len(cams))))
-            img = render(X, T, sub, antialias=s.antialias)
+            img = render(X, T, sub, kind=s.shading, antialias=s.antialias)
             ref = (ref_images[b:b + 4] if ref_images is not None
-                   else reference_images(rv, rf, sub, antialias=s.antialias))
+                   else reference_images(rv, rf, sub, antialias=s.antialias, kind=s.shading))
             se += float(((img - ref) ** 2).double().sum())
             n += img.numel()
     mse = se / max(n, 1)
@@ -52,6 +52,7 @@ def evaluate(mm_unit: MicroMesh, reference_unit: TriMesh, s: ConstructSettings,
     st = storage_bytes(mm_unit.levels, base.n_vertices)
     out["bytes"] = st["total"]
     out["bytes_values"] = st["values"]
+    out["bytes_mmt"] = mmt_formula_bytes(mm_unit.levels, base.n_vertices)
     out["micro_triangles"] = micro_triangle_count(mm_unit.levels)
     out["base_faces"] = int(base.n_faces)
     out["levels_hist"] = np.bincount(mm_unit.levels, minlength=6).tolist()

@@ -1,5 +1,5 @@
-"""The end of a construction: final levels, balance, tight bounds, metrics, and the result in
-the caller's frame."""
+"""The end of a construction: final levels, balance, the least-squares fit of the
+displacements (``core.fit``), tight bounds, metrics, and the result in the caller's frame."""
 from __future__ import annotations
 
 import time
@@ -9,6 +9,7 @@ import numpy as np
 from ..bounds import tight_bounds
 from ..mesh import TriMesh
 from ..microtopology import balance_levels
+from ..fit import fit_displacements
 from .choose_levels import final_levels
 from .evaluate import evaluate
 from .frame import to_caller_frame
@@ -24,6 +25,12 @@ def finalise(run: RunState, params: Parameters, reference: TriMesh, base: TriMes
     mm = final_levels(run, mm)
     with run.timer.phase("finalize"):
         mm = mm.with_levels(balance_levels(run.base, mm.levels))
+    if run.s.final_fit:
+        run.check_stop()
+        with run.timer.phase("fit"):
+            mm = mm.with_displacements(fit_displacements(mm, run.scene.ref,
+                                                         run.s.fit_smoothness))
+    with run.timer.phase("finalize"):
         bounds = tight_bounds(mm)
     run.check_stop()
     construct_time = time.perf_counter() - t_start

@@ -15,6 +15,7 @@ from typing import Callable
 import numpy as np
 import torch
 
+from ..base import DecimateCancelled, base_for, differences, topology
 from ..cameras import Cameras
 from ..lod import micro_triangle_count
 from ..losses import mean_edge_length
@@ -32,15 +33,19 @@ from .schedule import Schedule
 from .state import RunState
 from .step import step
 from .subdivision import subdivide
-from .types import ConstructResult, Progress
+from .types import ConstructCancelled, ConstructError, ConstructResult, Progress
 
 
-def construct(reference: TriMesh, base: TriMesh, cameras: Cameras | None,
+def construct(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
               settings: ConstructSettings,
               progress: Callable[[Progress], None] | None = None,
               should_stop: Callable[[], bool] | None = None,
               levels: np.ndarray | None = None) -> ConstructResult:
     """Build a micro-mesh of ``reference`` on ``base`` (both in the caller's frame).
+
+    ``base`` None: the settings' base (``core.base.base_for``) is built first (phase "base");
+    its report is ``metrics["base"]``. ``metrics["warnings"]`` lists, in words, how the base's
+    topology differs from the reference's and where the base builder stopped short.
 
     ``cameras`` (caller's frame) or None for ``settings.n_views`` Fibonacci cameras. Raises
     :class:`ConstructCancelled` within one iteration of ``should_stop()`` returning True.
@@ -67,9 +72,9 @@ def _setup(reference, base, cameras, s, dev, should_stop, fixed) -> RunState:
     cams = unit_cameras(cameras, norm, s, s.train_resolution)
     k = s.lod_resolution / max(cams.width, cams.height)
     lod_cams = cams.with_resolution(max(8, round(cams.width * k)), max(8, round(cams.height * k)))
-    run = RunState(s, dev, norm, base_u, Scene(ref_u, cams, dev, s.antialias), lod_cams,
-                   should_stop or (lambda: False), fixed=fixed,
-                   bake_distance=2.0 * mean_edge_length(base_u.vertices, base_u.faces))
+    run = RunState(s, dev, norm, base_u, reference.n_faces, Scene(ref_u, cams, dev, s.antialias, s.shading),
+                   lod_cams, should_stop or (lambda: False), fixed=fixed,
+                   h=mean_edge_length(base_u.vertices, base_u.faces))
     if s.lod_criterion == "chamfer":
         from scipy.spatial import cKDTree
         run.ref_tree = cKDTree(ref_u.vertices)
@@ -91,13 +96,34 @@ def _initial_micromesh(run: RunState) -> MicroMesh:
         start -= 1             # no progressive schedule: the finest uniform level in budget
     run.level = start
     mm = MicroMesh.flat(base, np.full(base.n_faces, start))
-    d0 = bake(mm, run.scene.ref, run.bake_distance) if s.init_bake else np.zeros(mm.n_vertices)
-    return mm.with_displacements(d0)
+    if not s.init_bake or (start == 0 and s.base_warm_up):
+        return mm                # zero displacements: the warm-up moves the base alone
+    return mm.with_displacements(bake(mm, run.scene.ref, run.bake_distance))
+
+
+def _base(reference: TriMesh, s: ConstructSettings, progress, should_stop) -> tuple[TriMesh, dict]:
+    """The settings' base mesh, with progress reports of phase "base"."""
+    def report(fraction: float) -> None:
+        if progress is not None:
+            progress(Progress("base", int(100 * fraction), 100, 0.0, float("nan"), 0.0))
+
+    try:
+        built = base_for(reference, s, report, should_stop)
+    except DecimateCancelled:
+        raise ConstructCancelled("construction cancelled") from None
+    return built.mesh, built.report
 
 
 def _construct(reference, base, cameras, settings, progress, should_stop, levels) -> ConstructResult:
     s = settings.validate()
-    check_inputs(reference, base)
+    if base is None:
+        if levels is not None:
+            raise ConstructError("fixed levels need the base mesh they belong to")
+        base, base_report = _base(reference, s, progress, should_stop)
+        warnings = list(base_report["warnings"])
+    else:
+        check_inputs(reference, base)
+        base_report, warnings = None, differences(topology(reference), topology(base))
     fixed = fixed_levels(base, levels) if levels is not None else None
     set_threads(s.threads)
     dev = torch_device(s.device)
@@ -133,8 +159,9 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
                 run.check_stop()
         with run.timer.phase("optimize"):
             idx = np.sort(rng.choice(len(cams), views, replace=False))
-            loss, l_render, mse = step(params, s, cams.subset(idx), target_all[idx],
-                                       schedule.frozen(it))
+            warm = s.base_warm_up and run.level == 0 and run.fixed is None
+            loss, l_render, mse = step(params, s, cams.subset(idx), target_all[idx], run.h,
+                                       schedule.frozen(it), warm)
         p = 10 * np.log10(1.0 / mse) if mse > 0 else float("inf")
         it_done += 1
         h["iteration"].append(it)
@@ -147,6 +174,9 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
                               el / it_done * (n_it - it_done)))
     run.check_stop()
     result = finalise(run, params, reference, base, t_start, it_done, schedule.stopped_early)
+    result.metrics["warnings"] = warnings
+    if base_report is not None:
+        result.metrics["base"] = base_report
     if progress is not None:
         progress(Progress("done", n_it, n_it, h["loss"][-1] if h["loss"] else 0.0,
                           result.metrics.get("psnr", h["psnr"][-1] if h["psnr"] else 0.0), 0.0))

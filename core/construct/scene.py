@@ -17,18 +17,21 @@ from ..settings import ConstructSettings
 class Scene:
     """Reference and cameras in the unit-sphere frame, with cached reference images."""
 
-    def __init__(self, reference_unit: TriMesh, cams: Cameras, device, antialias: bool):
+    def __init__(self, reference_unit: TriMesh, cams: Cameras, device, antialias: bool,
+                 shading: str = "shaded"):
         self.ref = reference_unit
         self.cams = cams
         self.device = device
         self.antialias = antialias
+        self.shading = shading
         self.rv = torch.as_tensor(reference_unit.vertices, dtype=torch.float32, device=device)
         self.rf = torch.as_tensor(reference_unit.faces, dtype=torch.int64, device=device)
         self._images: dict[tuple, torch.Tensor] = {}
 
     def images(self, cams: Cameras, key) -> torch.Tensor:
         if key not in self._images:
-            self._images[key] = reference_images(self.rv, self.rf, cams, antialias=self.antialias)
+            self._images[key] = reference_images(self.rv, self.rf, cams, antialias=self.antialias,
+                                                 kind=self.shading)
         return self._images[key]
 
 
@@ -47,7 +50,8 @@ def face_errors(mm: MicroMesh, scene: Scene, cams: Cameras, key, s: ConstructSet
     for b in range(0, len(cams), 8):  # chunks of views bound the memory
         sub = cams.subset(np.arange(b, min(b + 8, len(cams))))
         ras = rasterize(X, T, sub)
-        err = pixel_error(X, T, sub, target[b:b + 8], raster=ras, antialias=s.antialias)
+        err = pixel_error(X, T, sub, target[b:b + 8], raster=ras, antialias=s.antialias,
+                          kind=s.shading)
         sums += face_error_sums(err.cpu().numpy(), ras.tri_id.cpu().numpy(),
                                 mm.topology.triangle_face, nf)
     return sums

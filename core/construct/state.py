@@ -15,12 +15,13 @@ from .scene import Scene
 from .types import ConstructCancelled
 
 
-def budget_cost(s: ConstructSettings, n_base_vertices: int):
+def budget_cost(s: ConstructSettings, n_base_vertices: int, reference_faces: int):
     """(cost(levels), budget) of the LOD budget, or (None, 0)."""
-    if s.budget_bytes > 0:
-        return (lambda lv: storage_bytes(lv, n_base_vertices)["total"]), float(s.budget_bytes)
-    if s.budget_micro_triangles > 0:
-        return micro_triangle_count, float(s.budget_micro_triangles)
+    kind, amount = s.budget(reference_faces)
+    if kind == "bytes":
+        return (lambda lv: storage_bytes(lv, n_base_vertices)["total"]), amount
+    if kind == "micro_triangles":
+        return micro_triangle_count, amount
     return None, 0.0
 
 
@@ -37,12 +38,13 @@ class RunState:
     device: object
     norm: Normalization
     base: TriMesh                      # unit frame, as given
+    reference_faces: int
     scene: Scene
     lod_cams: Cameras
     should_stop: Callable[[], bool]
     fixed: np.ndarray | None = None
     ref_tree: object = None
-    bake_distance: float = 0.0
+    h: float = 1.0                     # the base's initial mean edge length (unit frame)
     level: int = 0
     timer: PhaseTimer = field(default_factory=PhaseTimer)
     history: dict = field(default_factory=lambda: {"iteration": [], "loss": [], "render": [],
@@ -51,7 +53,12 @@ class RunState:
     last_errors: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        self.cost, self.budget = budget_cost(self.s, self.base.n_vertices)
+        self.cost, self.budget = budget_cost(self.s, self.base.n_vertices, self.reference_faces)
+
+    @property
+    def bake_distance(self) -> float:
+        """How far projection baking looks along a direction: two mean base edges."""
+        return 2.0 * self.h
 
     def check_stop(self) -> None:
         if self.should_stop():

@@ -1,5 +1,6 @@
 """A subdivision event of the schedule: measure the per-face errors, choose the next levels
-(:mod:`core.construct.choose_levels`) and give the new micro-vertices their displacements."""
+(:mod:`core.construct.choose_levels`) and give the new micro-vertices their displacements.
+Micro-vertices that existed before keep their optimised values."""
 from __future__ import annotations
 
 import numpy as np
@@ -30,21 +31,26 @@ def subdivide(run: RunState, params: Parameters, it: int) -> None:
         run.event(iteration=it, level=run.level + 1, subdivided=0)
         run.level += 1
         return
-    nxt = cur.with_levels(new)
-    o = nxt.micro_vertex_base_positions()
-    dd = nxt.micro_vertex_directions()
-    if s.init_new_levels == "bake":
-        # Our addition: project the new micro-vertices onto the reference.
-        br = bake_displacements(o, dd, run.scene.ref, max_distance=run.bake_distance)
-    else:
-        # The paper's interpolation, made exact: intersect each new vertex's line with the
-        # current displaced surface, so every new micro-vertex lies on it.
-        br = bake_displacements(o, dd, cur.tessellate().to_trimesh(),
+    nxt, kept = cur.resampled(new)
+    if not kept.all():
+        # New micro-vertices: projected onto the reference ("bake", ours), or onto the
+        # current displaced surface ("interpolate", the paper's rule made exact: each lies on
+        # the surface it subdivides); "rebake" projects every micro-vertex onto the
+        # reference again (the measurement's alternative). The warm-up left the level-0
+        # values at zero, untrained: those are baked too. Where a projection falls back to
+        # the nearest point (no ray hit within reach: the spikes of plain baking) the
+        # resampled value stays.
+        warmed = s.base_warm_up and run.level == 0
+        every = s.init_new_levels == "rebake" or (warmed and s.init_new_levels == "bake")
+        todo = np.arange(nxt.n_vertices) if every else np.flatnonzero(~kept)
+        onto = cur.tessellate().to_trimesh() if s.init_new_levels == "interpolate" and \
+            not warmed else run.scene.ref
+        br = bake_displacements(nxt.micro_vertex_base_positions()[todo],
+                                nxt.micro_vertex_directions()[todo], onto,
                                 max_distance=run.bake_distance)
-    # Keep the resampled value where the projection fell back to the nearest point
-    # (no ray hit within reach): those are the spikes of plain baking.
-    nxt = nxt.with_displacements(np.where(br.source == SOURCE_NEAREST,
-                                          nxt.displacements, br.displacement))
+        d = nxt.displacements.copy()
+        d[todo] = np.where(br.source == SOURCE_NEAREST, d[todo], br.displacement)
+        nxt = nxt.with_displacements(d)
     params.set_micromesh(nxt)
     run.event(iteration=it, level=run.level + 1, subdivided=int((new > old).sum()),
               micro_triangles=micro_triangle_count(new))

@@ -13,7 +13,8 @@ from .geometry import vertex_normals
 from .topology import face_neighbours
 from .types import Raster, RenderError, camera_mvp, check_backend, check_mesh, check_raster
 
-KINDS = ("shaded", "normal", "mask", "depth")
+KINDS = ("shaded", "flat", "normal", "mask", "depth")
+SHADINGS = ("shaded", "flat")
 
 
 def _numba():
@@ -51,7 +52,9 @@ def render(verts: torch.Tensor, faces: torch.Tensor, cams, *, kind: str = "shade
     """(B, H, W, C) image differentiable w.r.t. verts; background 0.
 
     kind: "shaded" (C=3, SH lighting of interpolated, normalised area-weighted vertex normals),
-    "normal" (C=3, world-space unit normal), "mask" (C=1), "depth" (C=1, view-space depth).
+    "flat" (C=3, the same lighting of each face's own normal: facets, as a ray tracer shows
+    micro-triangles without shading normals), "normal" (C=3, world-space unit normal),
+    "mask" (C=1), "depth" (C=1, view-space depth).
     """
     if kind not in KINDS:
         raise RenderError(f"kind must be one of {KINDS}, got {kind!r}")
@@ -91,35 +94,47 @@ def _check_target(target: torch.Tensor, raster: Raster, channels: int = 3) -> to
     return target
 
 
+def _check_shading(kind: str) -> str:
+    if kind not in SHADINGS:
+        raise RenderError(f"shading kind must be one of {SHADINGS}, got {kind!r}")
+    return kind
+
+
 def render_loss(verts: torch.Tensor, faces: torch.Tensor, cams, target: torch.Tensor, *,
-                raster: Raster | None = None, antialias: bool = True,
+                raster: Raster | None = None, antialias: bool = True, kind: str = "shaded",
                 backend: str = "auto") -> torch.Tensor:
-    """Scalar mean |render(kind="shaded") - target| over B*H*W*3 (fused on the numba backend)."""
+    """Scalar mean |render(kind) - target| over B*H*W*3 (fused on the numba backend);
+    ``kind`` "shaded" or "flat"."""
+    kind = _check_shading(kind)
     verts, faces, raster, be = _prepare(verts, faces, cams, raster, backend)
     target = _check_target(target, raster)
     if be == "numba":
-        return _numba().loss_numba(verts, faces, raster, target, antialias)
-    img = render(verts, faces, cams, raster=raster, antialias=antialias, backend=be)
+        return _numba().loss_numba(verts, faces, raster, target, antialias, kind)
+    img = render(verts, faces, cams, kind=kind, raster=raster, antialias=antialias, backend=be)
     return (img - target.to(img.dtype)).abs().mean()
 
 
 def pixel_error(verts: torch.Tensor, faces: torch.Tensor, cams, target: torch.Tensor, *,
-                raster: Raster | None = None, antialias: bool = True,
+                raster: Raster | None = None, antialias: bool = True, kind: str = "shaded",
                 backend: str = "auto") -> torch.Tensor:
-    """(B, H, W) per-pixel L1 error (sum over the 3 channels) of the shaded render; no gradient."""
+    """(B, H, W) per-pixel L1 error (sum over the 3 channels) of the ``kind`` render ("shaded"
+    or "flat"); no gradient."""
+    kind = _check_shading(kind)
     with torch.no_grad():
         verts, faces, raster, be = _prepare(verts.detach(), faces, cams, raster, backend)
         target = _check_target(target, raster)
-        img = render(verts, faces, cams, raster=raster, antialias=antialias, backend=be)
+        img = render(verts, faces, cams, kind=kind, raster=raster, antialias=antialias,
+                     backend=be)
         return (img - target.to(img.dtype)).abs().sum(-1)
 
 
 def reference_images(verts: torch.Tensor, faces: torch.Tensor, cams, *, antialias: bool = True,
-                     backend: str = "auto") -> torch.Tensor:
-    """(B, H, W, 3) shaded images (same lighting) of e.g. the high-poly reference; no gradient."""
+                     kind: str = "shaded", backend: str = "auto") -> torch.Tensor:
+    """(B, H, W, 3) images of ``kind`` ("shaded" or "flat", same lighting) of e.g. the
+    high-poly reference; no gradient."""
     with torch.no_grad():
-        return render(verts.detach(), faces, cams, kind="shaded", antialias=antialias,
-                      backend=backend)
+        return render(verts.detach(), faces, cams, kind=_check_shading(kind),
+                      antialias=antialias, backend=backend)
 
 
 def warm_up(device: str | torch.device = "cpu", *, antialias: bool = True) -> float:
@@ -141,7 +156,8 @@ def warm_up(device: str | torch.device = "cpu", *, antialias: bool = True) -> fl
     faces = torch.tensor([[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]], dtype=torch.int64)
     cams = fibonacci_cameras(2, width=16)
     target = reference_images(verts.detach(), faces, cams, antialias=antialias)
-    render(verts, faces, cams, antialias=antialias).sum().backward()
-    render_loss(verts, faces, cams, target, antialias=antialias).backward()
-    pixel_error(verts.detach(), faces, cams, target, antialias=antialias)
+    for kind in SHADINGS:
+        render(verts, faces, cams, kind=kind, antialias=antialias).sum().backward()
+        render_loss(verts, faces, cams, target, antialias=antialias, kind=kind).backward()
+        pixel_error(verts.detach(), faces, cams, target, antialias=antialias, kind=kind)
     return time.perf_counter() - t0

@@ -35,7 +35,7 @@ class _Shade(torch.autograd.Function):
         v, f, m, t = _np(verts), faces_int32(faces), _np(mvp), _np(tri)
         has_vn = vnormals is not None
         pv = np.concatenate([v, _np(vnormals).astype(v.dtype)], axis=1) if has_vn else v
-        nc = 3 if mode in (sk.MODE_SHADED, sk.MODE_NORMAL) else 1
+        nc = 3 if mode in (sk.MODE_SHADED, sk.MODE_NORMAL, sk.MODE_FLAT) else 1
         out = np.zeros(t.shape + (nc,), dtype=v.dtype)
         sk.shade_forward(pv, f, pv, 3 if has_vn else 0, m, t, mode, _QA, _QB, _QK, out)
         ctx.pv = pv
@@ -139,8 +139,8 @@ def render_numba(verts: torch.Tensor, faces: torch.Tensor, raster: Raster, kind:
 
 
 def loss_numba(verts: torch.Tensor, faces: torch.Tensor, raster: Raster, target: torch.Tensor,
-               antialias: bool) -> torch.Tensor:
-    img = shade_numba(verts, faces, raster, "shaded")
+               antialias: bool, kind: str = "shaded") -> torch.Tensor:
+    img = shade_numba(verts, faces, raster, kind)
     if antialias:
         return _Antialias.apply(img, verts, faces, raster, target)
     return _L1.apply(img, target)

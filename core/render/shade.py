@@ -1,5 +1,7 @@
 """Fused numba per-pixel kernels: perspective-correct barycentrics of the visible face, then
-shading (SH of the interpolated normal), normal, depth or mask, with an analytic backward.
+shading (SH of the interpolated normal), flat shading (SH of the face's own normal, as a ray
+tracer shows micro-triangles without shading normals), normal, depth or mask, with an
+analytic backward.
 
 Barycentrics are recomputed from the vertex positions (so they carry gradients, as in
 nvdiffrast's rasterize backward): with clip coordinates (x_i, y_i, w_i) of the face's vertices and
@@ -19,8 +21,9 @@ from ..jit import kernel
 from .geometry import NORMAL_EPS
 from .prefetch import ahead
 
-MODE_SHADED, MODE_NORMAL, MODE_DEPTH, MODE_MASK = 0, 1, 2, 3
-MODES = {"shaded": MODE_SHADED, "normal": MODE_NORMAL, "depth": MODE_DEPTH, "mask": MODE_MASK}
+MODE_SHADED, MODE_NORMAL, MODE_DEPTH, MODE_MASK, MODE_FLAT = 0, 1, 2, 3, 4
+MODES = {"shaded": MODE_SHADED, "normal": MODE_NORMAL, "depth": MODE_DEPTH, "mask": MODE_MASK,
+         "flat": MODE_FLAT}
 SLOTS = 8
 """Gradient accumulation slots (fixed, so results are independent of the thread count)."""
 _TINY = 1e-300
@@ -84,6 +87,47 @@ def _interp_normal(vn, o, i0, i1, i2, b0, b1, b2):
     return n0 * inv, n1 * inv, n2 * inv, inv
 
 
+@njit(inline="always")
+def _face_normal(verts, i0, i1, i2):
+    """Unit normal of a face (cross product of its edges from vertex 0), 1/|cross|, the edges."""
+    ax = np.float64(verts[i1, 0]) - np.float64(verts[i0, 0])
+    ay = np.float64(verts[i1, 1]) - np.float64(verts[i0, 1])
+    az = np.float64(verts[i1, 2]) - np.float64(verts[i0, 2])
+    bx = np.float64(verts[i2, 0]) - np.float64(verts[i0, 0])
+    by = np.float64(verts[i2, 1]) - np.float64(verts[i0, 1])
+    bz = np.float64(verts[i2, 2]) - np.float64(verts[i0, 2])
+    nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz + NORMAL_EPS)
+    return nx * inv, ny * inv, nz * inv, inv, ax, ay, az, bx, by, bz
+
+
+@njit(inline="always")
+def _flat_backward(verts, i0, i1, i2, qa, qb, g0, g1, g2, gv):
+    """Gradient of the SH shading of a face's own normal w.r.t. its three corners."""
+    n0, n1, n2, inv, ax, ay, az, bx, by, bz = _face_normal(verts, i0, i1, i2)
+    h0 = h1 = h2 = 0.0
+    for ch in range(3):
+        gc = g0 if ch == 0 else (g1 if ch == 1 else g2)
+        a = qa[ch]
+        h0 += gc * (qb[ch, 0] + 2.0 * (a[0, 0] * n0 + a[0, 1] * n1 + a[0, 2] * n2))
+        h1 += gc * (qb[ch, 1] + 2.0 * (a[1, 0] * n0 + a[1, 1] * n1 + a[1, 2] * n2))
+        h2 += gc * (qb[ch, 2] + 2.0 * (a[2, 0] * n0 + a[2, 1] * n1 + a[2, 2] * n2))
+    d = n0 * h0 + n1 * h1 + n2 * h2
+    k0, k1, k2 = (h0 - n0 * d) * inv, (h1 - n1 * d) * inv, (h2 - n2 * d) * inv
+    # cross = a x b: d/da = b x k, d/db = k x a; vertex 0 moves both a and b.
+    pa0, pa1, pa2 = by * k2 - bz * k1, bz * k0 - bx * k2, bx * k1 - by * k0
+    pb0, pb1, pb2 = k1 * az - k2 * ay, k2 * ax - k0 * az, k0 * ay - k1 * ax
+    gv[i1, 0] += pa0
+    gv[i1, 1] += pa1
+    gv[i1, 2] += pa2
+    gv[i2, 0] += pb0
+    gv[i2, 1] += pb1
+    gv[i2, 2] += pb2
+    gv[i0, 0] -= pa0 + pb0
+    gv[i0, 1] -= pa1 + pb1
+    gv[i0, 2] -= pa2 + pb2
+
+
 @kernel(parallel=True)
 def reduce_slots(buf, out):
     """out (N, C) <- buf (K, N, C) summed over slots in slot order (deterministic)."""
@@ -135,6 +179,11 @@ def shade_forward(verts, faces, vn, noff, mvp, tri, mode, qa, qb, qk, out):
                 out[b, r, c, 0] = 1.0
                 continue
             i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+            if mode == MODE_FLAT:
+                n0, n1, n2 = _face_normal(verts, i0, i1, i2)[:3]
+                for ch in range(3):
+                    out[b, r, c, ch] = shade_normal(qa, qb, qk, ch, n0, n1, n2)
+                continue
             x = (c + 0.5) * (2.0 / width) - 1.0
             x0, y0, w0 = clip_xyw(verts, m, i0)
             x1, y1, w1 = clip_xyw(verts, m, i1)
@@ -156,6 +205,9 @@ def shade_forward(verts, faces, vn, noff, mvp, tri, mode, qa, qb, qk, out):
 def pixel_backward(verts, faces, vn, noff, m, f, x, y, mode, qa, qb, qk, g0, g1, g2, gv, gn):
     """Accumulate the gradients of one pixel's value (upstream g0..g2) into gv / gn."""
     i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+    if mode == MODE_FLAT:
+        _flat_backward(verts, i0, i1, i2, qa, qb, g0, g1, g2, gv)
+        return
     x0, y0, w0 = clip_xyw(verts, m, i0)
     x1, y1, w1 = clip_xyw(verts, m, i1)
     x2, y2, w2 = clip_xyw(verts, m, i2)

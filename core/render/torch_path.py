@@ -189,13 +189,17 @@ def barycentrics_torch(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tens
 
 def shade_torch(verts: torch.Tensor, faces: torch.Tensor, vnormals: torch.Tensor,
                 mvp: torch.Tensor, tri_id: torch.Tensor, kind: str) -> torch.Tensor:
-    """(B, H, W, C) image of ``kind`` ('shaded', 'normal', 'depth', 'mask'), background 0."""
+    """(B, H, W, C) image of ``kind`` ('shaded', 'flat', 'normal', 'depth', 'mask'), background 0."""
     nb, height, width = tri_id.shape
     index, face, bary, w = barycentrics_torch(verts, faces, mvp, tri_id)
     if kind == "mask":
         val = torch.ones((len(index), 1), dtype=verts.dtype, device=verts.device)
     elif kind == "depth":
         val = (bary * w).sum(1, keepdim=True)
+    elif kind == "flat":
+        f = faces.long()[face]
+        v0, v1, v2 = verts[f[:, 0]], verts[f[:, 1]], verts[f[:, 2]]
+        val = shade_normals(normalize(torch.linalg.cross(v1 - v0, v2 - v0)))
     else:
         n = normalize((bary[:, :, None] * vnormals[faces.long()[face]]).sum(1))
         val = shade_normals(n) if kind == "shaded" else n

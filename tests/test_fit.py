@@ -1,0 +1,66 @@
+"""Least-squares fitting of displacements: closer to the reference than projection baking,
+exact where the reference is reachable, smoother with more smoothness."""
+import numpy as np
+import pytest
+
+from core import primitives
+from core.bake import bake_displacements
+from core.closest import ClosestPointIndex
+from core.fit import FitError, fit_displacements, reference_samples
+from core.laplacian import uniform_laplacian
+from core.mesh import TriMesh
+from core.micromesh import MicroMesh
+
+
+def mean_distance(reference: TriMesh, mm: MicroMesh) -> float:
+    """Area-weighted mean distance from dense reference samples to the micro-surface."""
+    pts, _, w = reference_samples(reference, 4)
+    t = mm.tessellate()
+    _, _, d = ClosestPointIndex(t.vertices, t.triangles).query(pts)
+    return float((d * w).sum() / w.sum())
+
+
+@pytest.fixture(scope="module")
+def bumpy():
+    v, f = primitives.noisy_sphere(30000, amplitude=0.06, seed=2)
+    ref = TriMesh(v, f)
+    bv, bf = primitives.icosphere(4)
+    mm = MicroMesh.flat(TriMesh(bv, bf), np.full(len(bf), 2))
+    baked = bake_displacements(mm.micro_vertex_base_positions(), mm.micro_vertex_directions(),
+                               ref, max_distance=0.5).displacement
+    return ref, mm.with_displacements(baked)
+
+
+def test_fit_is_closer_than_baking(bumpy):
+    ref, baked = bumpy
+    fitted = baked.with_displacements(fit_displacements(baked, ref))
+    before, after = mean_distance(ref, baked), mean_distance(ref, fitted)
+    assert after < 0.85 * before, (before, after)
+
+
+def test_fit_reproduces_a_reachable_surface():
+    """The reference is itself a displaced micro-mesh of the base: the fit finds it again."""
+    bv, bf = primitives.icosphere(3)
+    mm = MicroMesh.flat(TriMesh(bv, bf), np.full(len(bf), 2))
+    rng = np.random.default_rng(0)
+    truth = 0.01 * rng.standard_normal(mm.n_vertices)
+    ref = mm.with_displacements(truth).tessellate().to_trimesh()
+    got = fit_displacements(mm.with_displacements(np.zeros(mm.n_vertices)), ref,
+                            smoothness=0.0, iterations=3)
+    np.testing.assert_allclose(got, truth, atol=1e-4)
+
+
+def test_smoothness_smooths(bumpy):
+    ref, baked = bumpy
+    L = uniform_laplacian(baked.n_vertices, baked.topology.triangles)
+    rough = fit_displacements(baked, ref, smoothness=0.0)
+    smoother = [np.linalg.norm(L @ fit_displacements(baked, ref, smoothness=w)) for w in (1.0, 30.0)]
+    assert np.linalg.norm(L @ rough) > smoother[0] > 1.5 * smoother[1]
+
+
+def test_bad_settings(bumpy):
+    ref, baked = bumpy
+    with pytest.raises(FitError):
+        fit_displacements(baked, ref, smoothness=-1)
+    with pytest.raises(FitError):
+        fit_displacements(baked, ref, samples_per_face=3)
