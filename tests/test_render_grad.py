@@ -208,3 +208,7 @@ def test_cuda_agrees_with_cpu():
     lg.backward()
     assert abs(float(lc) - float(lg)) < 1e-4
     torch.testing.assert_close(xg.grad.cpu(), xc.grad, rtol=1e-3, atol=1e-5)
+    xc, xg = v.clone().requires_grad_(True), v.cuda().requires_grad_(True)
+    render_loss(xc, f, cams, target, raster=rc, kind="flat").backward()
+    render_loss(xg, f.cuda(), cams, target.cuda(), raster=rg, kind="flat").backward()
+    torch.testing.assert_close(xg.grad.cpu(), xc.grad, rtol=1e-3, atol=1e-5)

@@ -1,0 +1,88 @@
+"""Base-mesh building: ``core.base.build_base`` with its defaults next to Blender's Decimate
+modifier at the same face count (the simplest alternative) and micromesh-tools' bases
+(``../shared/baselines``, read from the judge's cached JSON when given).
+
+Per mesh of ../shared/meshes: faces, time, base isotropy, the mean and max distance from the
+reference vertices to the base (over the bounding-box diagonal) and whether components,
+holes and genus are the input's.
+
+    python bench/base_bench.py [--meshes NAME ...] [--judged DIR] [--json FILE]
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from _common import MESHES, ROOT, parser, print_table, write_json
+from core.base import build_base, topology
+from core.base.build import welded
+from core.closest import ClosestPointIndex
+from core.mesh import TriMesh, unit_sphere_normalization
+from core.meshio import read_mesh
+from core.metrics import isotropy
+
+
+def measure(ref: TriMesh, base: TriMesh) -> dict:
+    """Distances from the reference's vertices to the base (over the diagonal), isotropy and
+    topology kept, in the reference's unit frame."""
+    norm = unit_sphere_normalization(ref.vertices)
+    r = welded(TriMesh(norm.apply(ref.vertices), ref.faces))
+    b = TriMesh(norm.apply(base.vertices), base.faces)
+    _, _, d = ClosestPointIndex(b.vertices, b.faces).query(r.vertices)
+    d /= r.bbox_diagonal
+    w = r.vertex_areas
+    return {"faces": b.n_faces, "iso": round(isotropy(b.vertices, b.faces), 3),
+            "err_mean": float(f"{(d * w).sum() / w.sum():.3g}"), "err_max": float(f"{d.max():.3g}"),
+            "topology": topology(r) == topology(welded(b))}
+
+
+def blender_decimate(ref: TriMesh, faces: int) -> tuple[TriMesh, float]:
+    import sys
+
+    sys.path.insert(0, str(ROOT))
+    import micromesh_path
+
+    micromesh_path.ensure_package()
+    from micromesh.operators.bl_mesh import decimate
+
+    t0 = time.perf_counter()
+    v, f = decimate(ref.vertices, ref.faces, target_faces=faces)
+    return TriMesh(v, f), time.perf_counter() - t0
+
+
+def main() -> None:
+    p = parser(__doc__.splitlines()[0])
+    p.add_argument("--meshes", nargs="+", default=None)
+    p.add_argument("--judged", default="/tmp/mm_bench_full",
+                   help="folder with the judge's theirs_NAME.json (bench/construct_bench.py)")
+    args = p.parse_args()
+    names = args.meshes or sorted(f.stem for f in MESHES.glob("*.ply"))
+    rows = []
+    for name in names:
+        ref = read_mesh(MESHES / f"{name}.ply")
+        t0 = time.perf_counter()
+        ours = build_base(ref)
+        t_ours = time.perf_counter() - t0
+        rows.append({"mesh": name, "method": "core.base", **measure(ref, ours.mesh),
+                     "time_s": round(t_ours, 2)})
+        bl, t_bl = blender_decimate(ref, ours.mesh.n_faces)
+        rows.append({"mesh": name, "method": "blender", **measure(ref, bl), "time_s": round(t_bl, 2)})
+        judged = Path(args.judged) / f"theirs_{name}.json"
+        if judged.exists():
+            j = json.loads(judged.read_text())
+            rows.append({"mesh": name, "method": "micromesh-tools",
+                         "faces": j["counts"]["base_faces"],
+                         "iso": round(j["isotropy"]["iso_base"], 3)})
+        for r in rows[-3:]:
+            print(r, flush=True)
+    print_table(rows, ["mesh", "method", "faces", "iso", "err_mean", "err_max", "topology",
+                       "time_s"], title="base meshes (error: reference vertices to the base / "
+                                        "bbox diagonal)")
+    write_json(args.json, rows)
+
+
+if __name__ == "__main__":
+    main()
