@@ -88,6 +88,26 @@ def _interp_normal(vn, o, i0, i1, i2, b0, b1, b2):
 
 
 @njit(inline="always")
+def _sh_grad(qa, qb, g0, g1, g2, n0, n1, n2):
+    """Gradient of the three SH-shaded channels (upstream g0..g2) w.r.t. the unit normal."""
+    h0 = h1 = h2 = 0.0
+    for ch in range(3):
+        gc = g0 if ch == 0 else (g1 if ch == 1 else g2)
+        a = qa[ch]
+        h0 += gc * (qb[ch, 0] + 2.0 * (a[0, 0] * n0 + a[0, 1] * n1 + a[0, 2] * n2))
+        h1 += gc * (qb[ch, 1] + 2.0 * (a[1, 0] * n0 + a[1, 1] * n1 + a[1, 2] * n2))
+        h2 += gc * (qb[ch, 2] + 2.0 * (a[2, 0] * n0 + a[2, 1] * n1 + a[2, 2] * n2))
+    return h0, h1, h2
+
+
+@njit(inline="always")
+def _unnormalized_grad(n0, n1, n2, inv, h0, h1, h2):
+    """Through the normalisation n = v / |v| (inv = 1 / |v|): the gradient w.r.t. v."""
+    d = n0 * h0 + n1 * h1 + n2 * h2
+    return (h0 - n0 * d) * inv, (h1 - n1 * d) * inv, (h2 - n2 * d) * inv
+
+
+@njit(inline="always")
 def _face_normal(verts, i0, i1, i2):
     """Unit normal of a face (cross product of its edges from vertex 0), 1/|cross|, the edges."""
     ax = np.float64(verts[i1, 0]) - np.float64(verts[i0, 0])
@@ -105,15 +125,8 @@ def _face_normal(verts, i0, i1, i2):
 def _flat_backward(verts, i0, i1, i2, qa, qb, g0, g1, g2, gv):
     """Gradient of the SH shading of a face's own normal w.r.t. its three corners."""
     n0, n1, n2, inv, ax, ay, az, bx, by, bz = _face_normal(verts, i0, i1, i2)
-    h0 = h1 = h2 = 0.0
-    for ch in range(3):
-        gc = g0 if ch == 0 else (g1 if ch == 1 else g2)
-        a = qa[ch]
-        h0 += gc * (qb[ch, 0] + 2.0 * (a[0, 0] * n0 + a[0, 1] * n1 + a[0, 2] * n2))
-        h1 += gc * (qb[ch, 1] + 2.0 * (a[1, 0] * n0 + a[1, 1] * n1 + a[1, 2] * n2))
-        h2 += gc * (qb[ch, 2] + 2.0 * (a[2, 0] * n0 + a[2, 1] * n1 + a[2, 2] * n2))
-    d = n0 * h0 + n1 * h1 + n2 * h2
-    k0, k1, k2 = (h0 - n0 * d) * inv, (h1 - n1 * d) * inv, (h2 - n2 * d) * inv
+    h0, h1, h2 = _sh_grad(qa, qb, g0, g1, g2, n0, n1, n2)
+    k0, k1, k2 = _unnormalized_grad(n0, n1, n2, inv, h0, h1, h2)
     # cross = a x b: d/da = b x k, d/db = k x a; vertex 0 moves both a and b.
     pa0, pa1, pa2 = by * k2 - bz * k1, bz * k0 - bx * k2, bx * k1 - by * k0
     pb0, pb1, pb2 = k1 * az - k2 * ay, k2 * ax - k0 * az, k0 * ay - k1 * ax
@@ -221,15 +234,8 @@ def pixel_backward(verts, faces, vn, noff, m, f, x, y, mode, qa, qb, qk, g0, g1,
         if mode == MODE_NORMAL:
             h0, h1, h2 = g0, g1, g2
         else:
-            h0 = h1 = h2 = 0.0
-            for ch in range(3):
-                gc = g0 if ch == 0 else (g1 if ch == 1 else g2)
-                a = qa[ch]
-                h0 += gc * (qb[ch, 0] + 2.0 * (a[0, 0] * n0 + a[0, 1] * n1 + a[0, 2] * n2))
-                h1 += gc * (qb[ch, 1] + 2.0 * (a[1, 0] * n0 + a[1, 1] * n1 + a[1, 2] * n2))
-                h2 += gc * (qb[ch, 2] + 2.0 * (a[2, 0] * n0 + a[2, 1] * n1 + a[2, 2] * n2))
-        d = n0 * h0 + n1 * h1 + n2 * h2
-        k0, k1, k2 = (h0 - n0 * d) * inv, (h1 - n1 * d) * inv, (h2 - n2 * d) * inv
+            h0, h1, h2 = _sh_grad(qa, qb, g0, g1, g2, n0, n1, n2)
+        k0, k1, k2 = _unnormalized_grad(n0, n1, n2, inv, h0, h1, h2)
         gn[i0, noff + 0] += b0 * k0
         gn[i0, noff + 1] += b0 * k1
         gn[i0, noff + 2] += b0 * k2
