@@ -116,6 +116,13 @@ def _base(reference: TriMesh, s: ConstructSettings, progress, should_stop) -> tu
 
 def _construct(reference, base, cameras, settings, progress, should_stop, levels) -> ConstructResult:
     s = settings.validate()
+    set_threads(s.threads)
+    dev = torch_device(s.device)
+    # Compile the renderer's kernels first: a fresh checkout's JIT (about a minute) must not
+    # eat the time limit or distort the ETA. The time limit counts from here, the base
+    # building included.
+    warm_up(dev, antialias=s.antialias)
+    t_start = time.perf_counter()
     if base is None:
         if levels is not None:
             raise ConstructError("fixed levels need the base mesh they belong to")
@@ -125,16 +132,13 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
         check_inputs(reference, base)
         base_report, warnings = None, differences(topology(reference), topology(base))
     fixed = fixed_levels(base, levels) if levels is not None else None
-    set_threads(s.threads)
-    dev = torch_device(s.device)
     torch.manual_seed(s.seed)
     rng = np.random.default_rng(s.seed)
-    # Compile the renderer's kernels first: a fresh checkout's JIT (about a minute) must not
-    # eat the time limit or distort the ETA.
-    warm_up(dev, antialias=s.antialias)
-    t_start = time.perf_counter()
+    t_setup = time.perf_counter()
     run = _setup(reference, base, cameras, s, dev, should_stop, fixed)
-    run.timer.times["setup"] = time.perf_counter() - t_start
+    run.timer.times["setup"] = time.perf_counter() - t_setup
+    if base_report is not None:
+        run.timer.times["base"] = base_report["time_s"]
     run.check_stop()
     cams = run.scene.cams
     with run.timer.phase("reference_images"):
