@@ -14,7 +14,6 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
 
 from _common import MESHES, ROOT, parser, print_table, write_json
 from core.base import build_base, topology

@@ -7,12 +7,10 @@ scene's run state (:func:`sync_state`) and, when done, writes the result
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from functools import partial
 
 import bpy
-import numpy as np
 from bpy.props import EnumProperty
 
 from ..core.settings import SettingsError, apply_overrides, preset

@@ -18,8 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..jit import kernel
-from . import heap
-from .links import compact_list, link_ok, ring
+from .links import compact_list
 
 RING = 4096          # neighbour buffer size (valences above it are truncated in pushes)
 FREE = 0.05          # eigenvalues of a quadric below FREE × the largest leave a direction free

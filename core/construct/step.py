@@ -1,7 +1,6 @@
 """One optimiser iteration: render a batch of views, the losses (method §3), one step."""
 from __future__ import annotations
 
-import numpy as np
 import torch
 
 from ..losses import isotropy_loss, laplacian_smoothing_loss, shell_range_loss, shell_volume_loss
