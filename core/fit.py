@@ -3,8 +3,8 @@
 Projection baking samples the reference at each micro-vertex along its direction: the
 piecewise-linear micro-surface interpolates those samples, so between them it cuts corners.
 Fitting instead chooses all displacements together so that the micro-surface passes as close
-as possible to the whole reference: dense samples on the reference (``samples_per_face`` per
-face, area-weighted), each matched to its closest point on the current micro-surface
+as possible to the whole reference: dense samples on the reference (at least ``density`` per
+micro-triangle, area-weighted), each matched to its closest point on the current micro-surface
 (micro-triangle and barycentrics), and the point-to-plane residual along the reference normal
 
     r = n · (Σ_k b_k (P_k + D_k d_k) − s)
@@ -26,26 +26,53 @@ from .laplacian import uniform_laplacian
 from .mesh import TriMesh
 from .micromesh import MicroMesh
 
-# Sample points per reference face, as barycentric weights.
-_SAMPLES = {1: np.array([[1 / 3, 1 / 3, 1 / 3]]),
-            4: np.array([[2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3],
-                         [1 / 3, 1 / 3, 1 / 3]])}
+# At most 4**_MAX_LEVEL samples on one reference face.
+_MAX_LEVEL = 5
 
 
 class FitError(ValueError):
     """Inputs the fit cannot use."""
 
 
-def reference_samples(reference: TriMesh, per_face: int = 4
+def _subtriangle_centroids(level: int) -> np.ndarray:
+    """(4**level, 3) barycentrics of the centroids of a triangle's uniform subdivision."""
+    r = 1 << level
+    i, j = np.meshgrid(np.arange(r), np.arange(r), indexing="ij")
+    up = i + j <= r - 1
+    down = i + j <= r - 2
+    u = np.concatenate([(i[up] + 1 / 3) / r, (i[down] + 2 / 3) / r])
+    v = np.concatenate([(j[up] + 1 / 3) / r, (j[down] + 2 / 3) / r])
+    return np.stack([1.0 - u - v, u, v], 1)
+
+
+def reference_samples(reference: TriMesh, sample_area: float | None = None
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(points (s, 3), unit normals (s, 3), weights (s,)) on the reference's faces."""
-    if per_face not in _SAMPLES:
-        raise FitError(f"samples per face must be one of {sorted(_SAMPLES)}")
-    w = _SAMPLES[per_face]
-    pts = np.einsum("sk,fkc->fsc", w, reference.vertices[reference.faces]).reshape(-1, 3)
-    normals = np.repeat(reference.face_normals, per_face, axis=0)
-    weights = np.repeat(reference.face_areas / per_face, per_face)
-    return pts, normals, weights / max(weights.mean(), 1e-300)
+    """(points (s, 3), unit normals (s, 3), weights (s,)) on the reference's faces.
+
+    Each face gets the centroids of its uniform subdivision at the level that makes a sample
+    cover at most ``sample_area`` (4 samples at least, 4**5 at most), so large faces (the flat
+    sides of CAD parts) are sampled as densely as the micro-mesh they must hold flat. Weights
+    are the area each sample stands for, over their mean.
+    """
+    areas = reference.face_areas
+    level = np.ones(len(areas), dtype=np.int64)
+    if sample_area is not None:
+        if not sample_area > 0:
+            raise FitError("the sample area must be positive")
+        with np.errstate(divide="ignore"):
+            want = np.ceil(np.log(np.maximum(areas / sample_area, 1.0)) / np.log(4.0))
+        level = np.clip(want.astype(np.int64), 1, _MAX_LEVEL)
+    corners = reference.vertices[reference.faces]
+    pts, normals, weights = [], [], []
+    for lv in np.unique(level):
+        faces = np.flatnonzero(level == lv)
+        w = _subtriangle_centroids(int(lv))
+        pts.append(np.einsum("sk,fkc->fsc", w, corners[faces]).reshape(-1, 3))
+        normals.append(np.repeat(reference.face_normals[faces], len(w), axis=0))
+        weights.append(np.repeat(areas[faces] / len(w), len(w)))
+    weights = np.concatenate(weights)
+    return (np.concatenate(pts), np.concatenate(normals),
+            weights / max(weights.mean(), 1e-300))
 
 
 def _barycentrics(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -62,22 +89,27 @@ def _barycentrics(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) ->
 
 
 def fit_displacements(mm: MicroMesh, reference: TriMesh, smoothness: float = 1e-3,
-                      iterations: int = 2, samples_per_face: int = 4,
-                      samples=None) -> np.ndarray:
+                      iterations: int = 2, density: float = 2.0, samples=None) -> np.ndarray:
     """Displacements (n,) of ``mm``'s micro-vertices fitted to ``reference`` (see the module
-    docstring); ``mm``'s own displacements are the starting point. ``samples``: the output of
-    :func:`reference_samples`, when the caller reuses it."""
-    if smoothness < 0 or iterations < 1:
-        raise FitError("smoothness must be >= 0 and iterations >= 1")
-    pts, normals, weights = samples if samples is not None else \
-        reference_samples(reference, samples_per_face)
+    docstring); ``mm``'s own displacements are the starting point.
+
+    ``density``: reference samples per micro-triangle at least (large reference faces are
+    subdivided for it). ``samples``: the output of
+    :func:`reference_samples`, when the caller reuses it.
+    """
+    if smoothness < 0 or iterations < 1 or not density > 0:
+        raise FitError("smoothness must be >= 0, iterations >= 1 and density > 0")
     P, D = mm.micro_vertex_base_positions(), mm.micro_vertex_directions()
     T = mm.tessellate().triangles
     T = T[(T[:, 0] != T[:, 1]) & (T[:, 1] != T[:, 2]) & (T[:, 2] != T[:, 0])]
     n = mm.n_vertices
+    d = mm.displacements.copy()
+    if samples is None:
+        area = _areas(P + D * d[:, None], T).sum()
+        samples = reference_samples(reference, area / (len(T) * density))
+    pts, normals, weights = samples
     L = uniform_laplacian(n, T)
     reg = smoothness * (L.T @ L) + 1e-9 * sp.eye(n)
-    d = mm.displacements.copy()
     for _ in range(iterations):
         X = P + D * d[:, None]
         cp, tri, _ = ClosestPointIndex(X, T).query(pts)
@@ -93,3 +125,7 @@ def fit_displacements(mm: MicroMesh, reference: TriMesh, smoothness: float = 1e-
         M = (AtW @ A + reg).tocsc()
         d = spla.spsolve(M, AtW @ rhs + 1e-9 * d)
     return np.asarray(d, dtype=np.float64)
+
+
+def _areas(X: np.ndarray, T: np.ndarray) -> np.ndarray:
+    return 0.5 * np.linalg.norm(np.cross(X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]]), axis=1)

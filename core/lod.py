@@ -92,7 +92,19 @@ def _ring_min_max(levels: np.ndarray, ring: tuple[np.ndarray, np.ndarray]) -> tu
 
 
 def micro_triangle_count(levels: np.ndarray) -> int:
+    """Micro-triangles of the full subdivisions (before the crack-free edge decimation)."""
     return int(np.sum(4 ** np.asarray(levels, dtype=np.int64)))
+
+
+def effective_micro_triangles(levels: np.ndarray, face_adjacency: np.ndarray) -> int:
+    """Micro-triangles the tessellation really has: a face at level l loses 2**(l-1) of them
+    along each edge whose neighbour is one level coarser (the edge decimation that keeps the
+    surface crack-free). ``face_adjacency``: (F, 3) neighbour across each edge, -1 none."""
+    lv = np.asarray(levels, dtype=np.int64)
+    adj = np.asarray(face_adjacency)
+    nb = np.where(adj >= 0, lv[np.maximum(adj, 0)], lv[:, None])
+    coarser = (nb == lv[:, None] - 1).sum(axis=1)
+    return int(np.sum(4 ** lv) - np.sum(coarser * (1 << np.maximum(lv - 1, 0))))
 
 
 # ------------------------------------------------------------------------ algorithms

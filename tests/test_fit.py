@@ -14,7 +14,7 @@ from core.micromesh import MicroMesh
 
 def mean_distance(reference: TriMesh, mm: MicroMesh) -> float:
     """Area-weighted mean distance from dense reference samples to the micro-surface."""
-    pts, _, w = reference_samples(reference, 4)
+    pts, _, w = reference_samples(reference)
     t = mm.tessellate()
     _, _, d = ClosestPointIndex(t.vertices, t.triangles).query(pts)
     return float((d * w).sum() / w.sum())
@@ -63,4 +63,33 @@ def test_bad_settings(bumpy):
     with pytest.raises(FitError):
         fit_displacements(baked, ref, smoothness=-1)
     with pytest.raises(FitError):
-        fit_displacements(baked, ref, samples_per_face=3)
+        fit_displacements(baked, ref, density=0)
+    with pytest.raises(FitError):
+        reference_samples(ref, sample_area=0.0)
+
+
+def _roof() -> TriMesh:
+    """A V-shaped roof of four big triangles, crease along x = 0.5."""
+    v = np.array([[0, 0, .2], [.5, 0, 0], [1, 0, .2], [0, 1, .2], [.5, 1, 0], [1, 1, .2]], float)
+    return TriMesh(v, np.array([[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4]]))
+
+
+def test_large_reference_faces_are_sampled_densely():
+    """A crease between big flat faces (as CAD exports them) crossing a base face: with
+    samples as dense as the micro-triangles the fit follows it; four samples per reference
+    face leave most micro-vertices to the smoothness term, which rounds it off."""
+    ref = _roof()
+    pts, _, w = reference_samples(ref, sample_area=1e-3)
+    assert len(pts) >= 1000 and np.isclose(w.sum(), len(w))
+    bv = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    mm = MicroMesh.flat(TriMesh(bv, np.array([[0, 1, 2], [0, 2, 3]])), np.array([4, 4]))
+    mm = mm.with_displacements(np.zeros(mm.n_vertices))
+    dense = mm.with_displacements(fit_displacements(mm, ref, iterations=3))
+    sparse = mm.with_displacements(fit_displacements(mm, ref, iterations=3,
+                                                     samples=reference_samples(ref)))
+    X = dense.tessellate().vertices
+    truth = 0.4 * np.abs(X[:, 0] - 0.5)
+    err_dense = np.abs(X[:, 2] - truth).max()
+    Xs = sparse.tessellate().vertices
+    err_sparse = np.abs(Xs[:, 2] - 0.4 * np.abs(Xs[:, 0] - 0.5)).max()
+    assert err_dense < 0.01 and err_sparse > 2 * err_dense, (err_dense, err_sparse)

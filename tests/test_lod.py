@@ -2,11 +2,12 @@
 import numpy as np
 import pytest
 
-from core.lod import (LodError, chamfer_face_errors, face_error_sums, in_optimization_lod,
-                      micro_triangle_count, post_process_lod, relative_gain,
+from core.lod import (LodError, chamfer_face_errors, effective_micro_triangles, face_error_sums,
+                      in_optimization_lod, micro_triangle_count, post_process_lod, relative_gain,
                       roll_back_to_budget, trim_to_budget)
 from core.mesh import TriMesh
-from core.microtopology import is_balanced
+from core.micromesh import MicroMesh
+from core.microtopology import balance_levels, is_balanced
 
 
 def _grid(n=6):
@@ -136,3 +137,14 @@ def test_exchange_to_budget_moves_triangles_to_where_they_help():
     # Nothing worth paying for: unchanged.
     same = exchange_to_budget(lv, 2, np.ones(n), np.ones(n), m.face_adjacency, micro_triangle_count, budget, 1)
     assert np.array_equal(same, lv)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_effective_count_is_the_tessellations(seed):
+    """The budget counts the micro-triangles the crack-free tessellation really has."""
+    m = _grid(5)
+    lv = balance_levels(m, np.random.default_rng(seed).integers(0, 5, m.n_faces))
+    t = MicroMesh.flat(m, lv).tessellate().triangles
+    real = int(((t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 2] != t[:, 0])).sum())
+    assert effective_micro_triangles(lv, m.face_adjacency) == real
+    assert real < micro_triangle_count(lv)

@@ -6,7 +6,7 @@ import torch
 
 from ..bounds import DirectionBounds, shell_volume, tight_bounds
 from ..cameras import fibonacci_cameras
-from ..lod import micro_triangle_count
+from ..lod import effective_micro_triangles
 from ..mesh import TriMesh
 from ..metrics import crack_edges, geometric_error, isotropy, mmt_formula_bytes, storage_bytes
 from ..micromesh import MicroMesh
@@ -53,7 +53,7 @@ def evaluate(mm_unit: MicroMesh, reference_unit: TriMesh, s: ConstructSettings,
     out["bytes"] = st["total"]
     out["bytes_values"] = st["values"]
     out["bytes_mmt"] = mmt_formula_bytes(mm_unit.levels, base.n_vertices)
-    out["micro_triangles"] = micro_triangle_count(mm_unit.levels)
+    out["micro_triangles"] = effective_micro_triangles(mm_unit.levels, base.face_adjacency)
     out["base_faces"] = int(base.n_faces)
     out["levels_hist"] = np.bincount(mm_unit.levels, minlength=6).tolist()
     eb = base.boundary_edges

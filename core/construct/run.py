@@ -17,7 +17,7 @@ import torch
 
 from ..base import DecimateCancelled, base_for, differences, topology
 from ..cameras import Cameras
-from ..lod import micro_triangle_count
+from ..lod import effective_micro_triangles
 from ..losses import mean_edge_length
 from ..memory import keep_large_allocations, release_memory
 from ..mesh import TriMesh, unit_sphere_normalization
@@ -147,7 +147,7 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
         mm = _initial_micromesh(run)
         params = Parameters(run.base, mm, s, run.device, frozen_base=run.fixed is not None)
     if run.fixed is not None:
-        run.event(iteration=0, fixed_levels=True, micro_triangles=micro_triangle_count(run.fixed))
+        run.event(iteration=0, fixed_levels=True, micro_triangles=effective_micro_triangles(run.fixed, run.base.face_adjacency))
     schedule = Schedule(s, t_start, fixed_levels=run.fixed is not None)
     n_it, views = s.iterations, min(s.views_per_iter, len(cams))
     t_loop, it_done = time.perf_counter(), 0

@@ -7,7 +7,7 @@ from typing import Callable
 import numpy as np
 
 from ..cameras import Cameras
-from ..lod import micro_triangle_count
+from ..lod import effective_micro_triangles
 from ..mesh import Normalization, TriMesh
 from ..metrics import PhaseTimer, storage_bytes
 from ..settings import ConstructSettings
@@ -15,13 +15,15 @@ from .scene import Scene
 from .types import ConstructCancelled
 
 
-def budget_cost(s: ConstructSettings, n_base_vertices: int, reference_faces: int):
-    """(cost(levels), budget) of the LOD budget, or (None, 0)."""
+def budget_cost(s: ConstructSettings, base: TriMesh, reference_faces: int):
+    """(cost(levels), budget) of the LOD budget, or (None, 0). Micro-triangles are counted as
+    the result has them (after the crack-free edge decimation), as the metrics report them."""
     kind, amount = s.budget(reference_faces)
     if kind == "bytes":
-        return (lambda lv: storage_bytes(lv, n_base_vertices)["total"]), amount
+        return (lambda lv: storage_bytes(lv, base.n_vertices)["total"]), amount
     if kind == "micro_triangles":
-        return micro_triangle_count, amount
+        adjacency = base.face_adjacency
+        return (lambda lv: effective_micro_triangles(lv, adjacency)), amount
     return None, 0.0
 
 
@@ -53,7 +55,7 @@ class RunState:
     last_errors: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        self.cost, self.budget = budget_cost(self.s, self.base.n_vertices, self.reference_faces)
+        self.cost, self.budget = budget_cost(self.s, self.base, self.reference_faces)
 
     @property
     def bake_distance(self) -> float:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..bake import SOURCE_NEAREST, bake_displacements
-from ..lod import micro_triangle_count, relative_gain
+from ..lod import effective_micro_triangles, relative_gain
 from .choose_levels import next_levels
 from .params import Parameters
 from .scene import face_errors
@@ -53,5 +53,5 @@ def subdivide(run: RunState, params: Parameters, it: int) -> None:
         nxt = nxt.with_displacements(d)
     params.set_micromesh(nxt)
     run.event(iteration=it, level=run.level + 1, subdivided=int((new > old).sum()),
-              micro_triangles=micro_triangle_count(new))
+              micro_triangles=effective_micro_triangles(new, run.base.face_adjacency))
     run.level += 1
