@@ -80,6 +80,18 @@ def pack(out: Outcome) -> bytes:
     return buf.getvalue()
 
 
+def store_bytes(obj, key: str, data: bytes) -> None:
+    """``obj[key] = data``, safely: assigning bytes to an ID property that already holds
+    bytes keeps them only up to the first zero byte (bpy 4.2-5.0), so the old one goes first;
+    the stored value is read back and compared."""
+    if key in obj:
+        del obj[key]
+    obj[key] = data
+    if bytes(obj[key]) != data:
+        raise RuntimeError(f"Blender stored {len(bytes(obj[key]))} of {len(data)} bytes of "
+                           f"'{key}' on '{obj.name}'")
+
+
 def unpack(data: bytes) -> dict:
     with np.load(io.BytesIO(bytes(data))) as z:
         return {k: z[k] for k in z.files}
@@ -121,7 +133,7 @@ def write_result(context, source: bpy.types.Object, base_obj: bpy.types.Object |
                                       reuse=lambda o: o.get(DATA_KEY) is not None)
     obj.micromesh_source = source
     obj.micromesh_base = base_obj
-    obj[DATA_KEY] = pack(out)
+    store_bytes(obj, DATA_KEY, pack(out))
     obj["micromesh_metrics"] = json.dumps(_jsonable(out.metrics))
     obj["micromesh_settings"] = json.dumps(_jsonable(out.settings))
     obj["micromesh_history"] = json.dumps(_jsonable(out.history))

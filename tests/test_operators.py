@@ -213,6 +213,22 @@ def test_save_reload_and_preview_strength(scene, tmp_path):
     np.testing.assert_allclose(full.vertices, after.micromesh.micro_vertex_positions(), atol=1e-4)
 
 
+def test_construct_twice_keeps_the_stored_result(scene, tmp_path):
+    """A second Construct on the same source replaces the stored micro-mesh whole (Blender
+    cut a reassigned bytes property at its first zero byte), in the scene and after saving."""
+    _make_base(scene)
+    assert bpy.ops.micromesh.construct(method="PROJECTION") == {"FINISHED"}
+    scene.micromesh.level = 1
+    assert bpy.ops.micromesh.construct(method="PROJECTION") == {"FINISHED"}
+    res = bpy.data.objects["rock_micromesh"]
+    assert set(writeback.load_outcome(res).micromesh.levels) == {1}
+    path = str(tmp_path / "twice.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    again = writeback.load_outcome(bpy.data.objects["rock_micromesh"])
+    assert set(again.micromesh.levels) == {1} and again.bounds is not None
+
+
 def test_undo_restores_the_scene(scene):
     src, base = _make_base(scene)
     base_before = bl_mesh.mesh_arrays(base.data)[0].copy()
