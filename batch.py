@@ -6,8 +6,9 @@ icosphere displaced by Blender's procedural textures, made at run time), decimat
 within a storage budget. With ``--input`` (one file or a folder of .ply / .obj / .glb / .gltf /
 .fbx / .blend) it does the same per input: the same workflow as the add-on's panel
 (``operators.pipeline``). Per input NAME it writes ``NAME.blend`` (holding ``NAME_micromesh``
-and ``NAME_base``), ``NAME.metrics.json`` and with ``--ply`` ``NAME_micromesh.ply``. Bad input
-exits non-zero with a one-line reason.
+and ``NAME_base``), ``NAME.metrics.json`` and with ``--ply`` ``NAME_micromesh.ply``: NAME is the
+input's stem (``stem_ext`` where two inputs share one), the files appear together when the input
+is done (the metrics file last), and existing results are kept unless ``--force``.
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ import json
 import os
 import sys
 import time
+import traceback
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -23,6 +25,15 @@ if str(HERE) not in sys.path:
     sys.path.insert(0, str(HERE))
 
 SUFFIXES = (".ply", ".obj", ".glb", ".gltf", ".fbx", ".blend")
+DEMO_NAME = "demo_rock"
+
+
+EXIT_CODES = """exit status:
+  0    every input done
+  1    some inputs failed (each named on one line; the others were done)
+  2    bad usage: options, input paths, output folder, results that exist (nothing was done)
+  3    internal error (a traceback follows: please report it)
+  130  interrupted (Ctrl-C); files of the input in progress are not left behind"""
 
 
 class BatchError(ValueError):
@@ -43,7 +54,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             argv = []
         else:                 # python batch.py ARGS
             argv = sys.argv[1:]
-    p = argparse.ArgumentParser(prog="batch.py", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="batch.py", description=__doc__.split("\n")[0],
+                                epilog=EXIT_CODES,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--input", help="a mesh file or a folder of mesh files (default: the demo)")
     p.add_argument("--output", default="out", help="output folder (default: out)")
     p.add_argument("--preset", default="default",
@@ -74,6 +87,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--cameras", type=int, default=0,
                    help="place this many Fibonacci camera objects and construct with them")
     p.add_argument("--ply", action="store_true", help="also write NAME_micromesh.ply")
+    p.add_argument("--force", action="store_true", help="replace results that already exist")
     p.add_argument("--threads", type=int, default=0, help="CPU threads (0: all usable cores)")
     p.add_argument("--demo-subdivisions", type=int, default=7, help=argparse.SUPPRESS)
     return p.parse_args(argv)
@@ -204,8 +218,9 @@ def _enable(bpy, module: str) -> None:
 
 
 # ------------------------------------------------------------------ one input
-def process(bpy, pkg, source, args, settings, out_dir: Path) -> dict:
-    """Base mesh, cameras, construction, write-back, save: the add-on's steps, headless."""
+def process(bpy, pkg, source, args, settings, out) -> dict:
+    """Base mesh, cameras, construction, write-back, save: the add-on's steps, headless.
+    ``out``: the result's :class:`OutputSet` (committed here, when every file is written)."""
     from micromesh.operators import bl_mesh, cameras_io, pipeline, writeback
 
     from micromesh.core.base import target_faces
@@ -257,17 +272,17 @@ def process(bpy, pkg, source, args, settings, out_dir: Path) -> dict:
     base_obj.micromesh_source, base_obj.display_type = source, "WIRE"
     obj = writeback.write_result(bpy.context, source, base_obj, outcome)
     m["total_time_s"] = time.perf_counter() - t0
-    out_dir.mkdir(parents=True, exist_ok=True)
-    blend = out_dir / f"{name}.blend"
-    bpy.ops.wm.save_as_mainfile(filepath=str(blend), compress=True)
-    (out_dir / f"{name}.metrics.json").write_text(json.dumps(
-        {"name": name, "object": obj.name, "method": outcome.method, "metrics": writeback._jsonable(m),
-         "settings": outcome.settings}, indent=1))
+    bpy.ops.wm.save_as_mainfile(filepath=str(out.temp(".blend")), compress=True)
     if args.ply:
         from micromesh.core.meshio import write_ply
 
         tess = outcome.micromesh.tessellate()
-        write_ply(out_dir / f"{name}_micromesh.ply", tess.vertices, tess.triangles)
+        write_ply(out.temp("_micromesh.ply"), tess.vertices, tess.triangles)
+    out.temp(".metrics.json").write_text(json.dumps(
+        {"name": name, "object": obj.name, "method": outcome.method, "metrics": writeback._jsonable(m),
+         "settings": outcome.settings}, indent=1))
+    out.commit()
+    blend = out.final(".blend")
     print(f"[{name}] {obj.name}: reference {m['reference_faces']} triangles, base "
           f"{m['base_faces']} triangles, {m['micro_vertices']} micro-vertices, "
           f"{m['micro_triangles']} micro-triangles, shell volume {m['shell_volume']:.5f} "
@@ -283,6 +298,7 @@ def main(argv: list[str] | None = None) -> int:
         import micromesh_path
 
         pkg = micromesh_path.ensure_package()
+        from micromesh.core.io.output_set import OutputError, OutputSet, check_output_folder, output_names
         from micromesh.core.settings import SettingsError, apply_overrides, preset
         from micromesh.core.threads import set_threads
 
@@ -293,36 +309,61 @@ def main(argv: list[str] | None = None) -> int:
             raise BatchError(str(e)) from None
         if args.level is not None and not 0 <= args.level <= 5:
             raise BatchError("--level must be within 0..5")
-        import bpy
-
-        set_threads(args.threads or settings.threads)
-        if not hasattr(bpy.types.Object, "micromesh_source"):
-            from micromesh.operators import props
-
-            props.register()
         out_dir = Path(args.output)
         jobs = inputs or [None]
-        failures = 0
-        for path in jobs:
-            bpy.ops.wm.read_factory_settings(use_empty=True)
-            try:
-                if path is None:
-                    source = demo_source(bpy, subdivisions=args.demo_subdivisions)
-                    print(f"[demo] procedural source '{source.name}': "
-                          f"{sum(len(p.vertices) - 2 for p in source.data.polygons)} triangles", flush=True)
-                else:
-                    source = import_source(bpy, path)
-                process(bpy, pkg, source, args, settings, out_dir)
-            except (BatchError, ValueError) as e:
-                if len(jobs) == 1:
-                    raise BatchError(f"{path.name if path else 'demo'}: {e}") from None
-                failures += 1
-                print(f"batch.py: error: {path.name if path else 'demo'}: {e}", file=sys.stderr, flush=True)
-        print(f"done: {len(jobs) - failures}/{len(jobs)} in {time.perf_counter() - t_start:.1f} s", flush=True)
-        return 1 if failures else 0
+        names = output_names(inputs) if inputs else [DEMO_NAME]
+        suffixes = [".blend"] + (["_micromesh.ply"] if args.ply else []) + [".metrics.json"]
+        sets = [OutputSet(out_dir, n, suffixes) for n in names]
+        try:
+            check_output_folder(out_dir)
+        except OutputError as e:
+            raise BatchError(str(e)) from None
+        existing = [p for o in sets for p in o.existing()]
+        if existing and not args.force:
+            raise BatchError(f"{len(existing)} result file(s) exist in {out_dir} ("
+                             f"{', '.join(p.name for p in existing[:3])}"
+                             f"{', ...' if len(existing) > 3 else ''}); --force replaces them")
     except BatchError as e:
         print(f"batch.py: error: {e}", file=sys.stderr, flush=True)
         return 2
+    import bpy
+
+    set_threads(args.threads or settings.threads)
+    if not hasattr(bpy.types.Object, "micromesh_source"):
+        from micromesh.operators import props
+
+        props.register()
+    failures = crashes = 0
+    try:
+        for path, out in zip(jobs, sets):
+            label = path.name if path else "demo"
+            bpy.ops.wm.read_factory_settings(use_empty=True)
+            with out:
+                try:
+                    if path is None:
+                        source = demo_source(bpy, DEMO_NAME, subdivisions=args.demo_subdivisions)
+                        print(f"[demo] procedural source '{source.name}': "
+                              f"{sum(len(p.vertices) - 2 for p in source.data.polygons)} triangles",
+                              flush=True)
+                    else:
+                        source = import_source(bpy, path)
+                        source.name = out.name
+                    process(bpy, pkg, source, args, settings, out)
+                except (BatchError, ValueError) as e:
+                    failures += 1
+                    out.discard()
+                    print(f"batch.py: error: {label}: {e}", file=sys.stderr, flush=True)
+                except Exception:
+                    crashes += 1
+                    out.discard()
+                    print(f"batch.py: internal error on {label}:", file=sys.stderr, flush=True)
+                    traceback.print_exc()
+    except KeyboardInterrupt:
+        print("batch.py: interrupted", file=sys.stderr, flush=True)
+        return 130
+    done = len(jobs) - failures - crashes
+    print(f"done: {done}/{len(jobs)} in {time.perf_counter() - t_start:.1f} s", flush=True)
+    return 3 if crashes else 1 if failures else 0
 
 
 def _exit(code: int) -> None:

@@ -49,7 +49,7 @@ def judge(python: str, ref: Path, mm: Path, out_json: Path) -> dict:
 def run_batch(mesh: Path, out: Path, overrides: list[str], extra: list[str]) -> tuple[dict, float]:
     """batch.py on one mesh; (metrics of the run, wall seconds)."""
     cmd = [sys.executable, str(ROOT / "batch.py"), "--input", str(mesh), "--output", str(out),
-           "--ply"] + extra + [a for o in overrides for a in ("--set", o)]
+           "--ply", "--force"] + extra + [a for o in overrides for a in ("--set", o)]
     t0 = time.perf_counter()
     r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     wall = time.perf_counter() - t0

@@ -143,3 +143,53 @@ def test_defaults_build_a_faithful_base_within_the_budget(inputs, tmp_path):
     base = bpy.data.objects["ring_base"]
     assert len(base.data.polygons) == m["base_faces"]
     bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
+QUICK = ("--method", "projection", "--level", "1", "--target-faces", "40", "--base-error", "0")
+
+
+def test_same_stem_inputs_keep_both_results_and_results_are_not_replaced(inputs, tmp_path):
+    folder, out = tmp_path / "same", tmp_path / "out"
+    folder.mkdir()
+    (folder / "a.ply").write_bytes((inputs / "ball.ply").read_bytes())
+    (folder / "a.obj").write_bytes((inputs / "monkey.obj").read_bytes())
+    r = run_batch("--input", folder, "--output", out, *QUICK)
+    assert r.returncode == 0 and "done: 2/2" in r.stdout, r.stdout + r.stderr
+    faces = {json.loads((out / f"{n}.metrics.json").read_text())["metrics"]["reference_faces"]
+             for n in ("a_obj", "a_ply")}
+    assert len(faces) == 2                                   # two different results
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        f"{n}{s}" for n in ("a_obj", "a_ply") for s in (".blend", ".metrics.json"))
+    before = (out / "a_ply.metrics.json").read_text()
+    again = run_batch("--input", folder, "--output", out, *QUICK, timeout=120)
+    assert again.returncode == 2 and "--force" in _error_lines(again.stderr)[0], again.stderr
+    assert (out / "a_ply.metrics.json").read_text() == before and "[a" not in again.stdout
+    forced = run_batch("--input", folder, "--output", out, *QUICK, "--force")
+    assert forced.returncode == 0, forced.stderr
+    assert json.loads((out / "a_ply.metrics.json").read_text())["name"] == "a_ply"
+
+
+def test_an_unusable_output_folder_is_refused_before_any_work(inputs, tmp_path):
+    (tmp_path / "file").write_text("x")
+    r = run_batch("--input", inputs / "ball.ply", "--output", tmp_path / "file" / "out", *QUICK,
+                  timeout=120)
+    assert r.returncode == 2 and "cannot write to the output folder" in r.stderr, r.stderr
+    assert "[ball]" not in r.stdout and "Traceback" not in r.stderr
+
+
+def test_ctrl_c_exits_130_in_one_line_and_leaves_no_files(inputs, tmp_path):
+    import signal
+
+    out = tmp_path / "out"
+    p = subprocess.Popen([sys.executable, str(ROOT / "batch.py"), "--input", inputs / "ball.ply",
+                          "--output", out, "--preset", "fast", "--set", "iterations=100000",
+                          "--set", "time_limit_s=0"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    for line in p.stdout:
+        if "optimize" in line:
+            break
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "batch.py: interrupted" and "Traceback" not in err
+    assert list(out.iterdir()) == []
