@@ -147,6 +147,30 @@ class MICROMESH_OT_check_base(bpy.types.Operator):
         return {"FINISHED"}
 
 
+def _set_selection(mesh, vsel: np.ndarray, fsel: np.ndarray) -> None:
+    """Select these vertices and faces (and the edges between selected vertices) of
+    ``mesh``, through bmesh: with bpy 5.0.1 a mesh made by ``from_pydata`` or
+    ``update(calc_edges=True)`` can carry a hidden ``.select_edge`` layer of the wrong type,
+    and writing ``edges.foreach_set("select")`` into it kills the process."""
+    import bmesh
+
+    bm = bmesh.new()
+    try:
+        bm.from_mesh(mesh)
+        bm.verts.ensure_lookup_table()
+        bm.faces.ensure_lookup_table()
+        for v, on in zip(bm.verts, vsel.tolist()):
+            v.select = on
+        for e in bm.edges:
+            e.select = e.verts[0].select and e.verts[1].select
+        for f, on in zip(bm.faces, fsel.tolist()):
+            f.select = on
+        bm.to_mesh(mesh)
+    finally:
+        bm.free()
+    mesh.update()
+
+
 def select_problems(context, obj, base: TriMesh, tri_poly: np.ndarray, rep: check.CheckReport):
     """Select the offending vertices, edges and faces of ``obj`` and enter Edit Mode."""
     mesh = obj.data
@@ -158,12 +182,7 @@ def select_problems(context, obj, base: TriMesh, tri_poly: np.ndarray, rep: chec
     vsel[bad_edges.reshape(-1)] = True
     vsel[rep.valence_vertices] = True
     vsel[base.faces[faces].reshape(-1)] = True
-    ev = np.empty(2 * len(mesh.edges), np.int32)
-    mesh.edges.foreach_get("vertices", ev)
-    esel = vsel[ev.reshape(-1, 2)].all(1)
-    mesh.vertices.foreach_set("select", vsel)
-    mesh.edges.foreach_set("select", esel)
-    mesh.polygons.foreach_set("select", fsel)
+    _set_selection(mesh, vsel, fsel)
     view_layer = context.view_layer
     if obj.name in view_layer.objects:
         for o in view_layer.objects.selected:
