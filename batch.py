@@ -309,6 +309,12 @@ def main(argv: list[str] | None = None) -> int:
             raise BatchError(str(e)) from None
         if args.level is not None and not 0 <= args.level <= 5:
             raise BatchError("--level must be within 0..5")
+        if args.level is not None and args.method != "projection":
+            raise BatchError("--level sets the projection method's level: use it with "
+                             "--method projection (the optimiser's levels come from the budget "
+                             "and --set max_level=N)")
+        if args.threads < 0:
+            raise BatchError("--threads must be >= 0 (0: all usable cores)")
         out_dir = Path(args.output)
         jobs = inputs or [None]
         names = output_names(inputs) if inputs else [DEMO_NAME]

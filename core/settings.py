@@ -11,6 +11,8 @@ import dataclasses
 from dataclasses import dataclass, fields, replace
 from typing import Iterable
 
+from .settings_rules import problems
+
 
 class SettingsError(ValueError):
     """A preset name or an override is not valid."""
@@ -96,39 +98,11 @@ class ConstructSettings:
     geom_error: bool = True
 
     def validate(self) -> "ConstructSettings":
-        """Raise :class:`SettingsError` on inconsistent values; return self."""
-        if self.device not in ("cpu", "cuda", "auto"):
-            raise SettingsError(f"device must be cpu, cuda or auto, not {self.device!r}")
-        if not 0 <= self.max_level <= 5:
-            raise SettingsError("max_level must be within 0..5 (the hardware limit is 5)")
-        if self.min_level < 0:
-            raise SettingsError("min_level must be >= 0 (values above max_level act as max_level)")
-        if self.iterations < 0:
-            raise SettingsError("iterations must be >= 0")
-        if any(b < 0 for b in self.subdivide_at) or list(self.subdivide_at) != sorted(self.subdivide_at):
-            raise SettingsError("subdivide_at must be ascending, non-negative iterations")
-        if self.lod not in ("in_optim", "post", "uniform"):
-            raise SettingsError(f"lod must be in_optim, post or uniform, not {self.lod!r}")
-        if self.lod_criterion not in ("visual", "chamfer"):
-            raise SettingsError(f"lod_criterion must be visual or chamfer, not {self.lod_criterion!r}")
-        if self.init_new_levels not in ("bake", "interpolate", "rebake"):
-            raise SettingsError("init_new_levels must be bake, interpolate or rebake")
-        if not 0 <= self.fit_smoothness < 1e3:
-            raise SettingsError("fit_smoothness must be within [0, 1000)")
-        if self.shading not in ("flat", "shaded"):
-            raise SettingsError(f"shading must be flat or shaded, not {self.shading!r}")
-        if self.n_views < 1 or self.views_per_iter < 1:
-            raise SettingsError("n_views and views_per_iter must be >= 1")
-        if min(self.train_resolution, self.eval_resolution, self.lod_resolution) < 8:
-            raise SettingsError("resolutions must be >= 8 pixels")
-        if self.lambda_base < 0 or self.lambda_micro < 0:
-            raise SettingsError("lambda_base and lambda_micro must be >= 0")
-        if not 0 <= self.base_ratio <= 1 or self.base_faces < 0:
-            raise SettingsError("base_ratio must be within [0, 1] and base_faces >= 0")
-        if not 0 <= self.base_max_error < 1 or not 0 <= self.base_min_quality < 1:
-            raise SettingsError("base_max_error and base_min_quality must be within [0, 1)")
-        if self.budget_bytes < 0 or self.budget_micro_triangles < 0 or not self.budget_ratio >= 0:
-            raise SettingsError("budgets must be >= 0 (0: not set)")
+        """Raise :class:`SettingsError` naming every setting outside its allowed values
+        (``core.settings_rules``); return self."""
+        bad = problems(self, PRESETS)
+        if bad:
+            raise SettingsError("; ".join(bad))
         return self
 
     def budget(self, reference_faces: int) -> tuple[str, float]:
@@ -204,14 +178,25 @@ def _parse(value: str, current):
             return False
         raise SettingsError(f"expected a boolean, got {value!r}")
     if isinstance(current, int):
-        return int(float(v))
+        return _integer(v)
     if isinstance(current, float):
         return float(v)
     if isinstance(current, tuple):
         items = [s for s in v.strip("()[] ").replace(";", ",").split(",") if s.strip()]
         kind = type(current[0]) if current else int
-        return tuple(kind(float(s)) if kind is int else kind(s) for s in items)
+        return tuple(_integer(s) if kind is int else kind(s) for s in items)
     return v
+
+
+def _integer(text: str) -> int:
+    """``text`` as an integer: "12" or "1e3", never a rounded "1.7" or "inf"."""
+    try:
+        return int(text)
+    except ValueError:
+        x = float(text)
+        if not x.is_integer():
+            raise SettingsError(f"expected an integer, got {text!r}") from None
+        return int(x)
 
 
 def apply_overrides(settings: ConstructSettings, overrides: Iterable[str] | dict) -> ConstructSettings:
@@ -231,7 +216,7 @@ def apply_overrides(settings: ConstructSettings, overrides: Iterable[str] | dict
             changes[key] = _parse(value, cur) if isinstance(value, str) and not isinstance(cur, str) else value
         except (TypeError, ValueError) as e:
             if isinstance(e, SettingsError):
-                raise
+                raise SettingsError(f"setting '{key}': {e}") from None
             raise SettingsError(f"bad value {value!r} for {key}: {e}") from None
     return replace(settings, **changes).validate()
 

@@ -88,6 +88,16 @@ def test_batch_over_a_folder(inputs, tmp_path):
     (["--budget", "-2x"], "--budget"),
     (["--ratio", "1.5"], "--ratio"),
     (["--symmetry", "X"], "--symmetry"),
+    (["--level", "3"], "--method projection"),
+    (["--threads", "-2"], "--threads"),
+    (["--set", "seed=1.7"], "'seed'"),
+    (["--set", "preset=turbo"], "'preset'"),
+    (["--set", "tau_in=nan"], "'tau_in'"),
+    (["--set", "iterations=inf"], "'iterations'"),
+    (["--set", "lr_base=nan"], "'lr_base'"),
+    (["--set", "camera_radius=0"], "'camera_radius'"),
+    (["--set", "betas=0.9"], "'betas'"),
+    (["--set", "eval_views=0"], "'eval_views'"),
 ])
 def test_bad_input_exits_with_one_line(inputs, tmp_path, args, reason):
     args = [a.replace("{inputs}", str(inputs)) for a in args]
