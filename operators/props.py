@@ -123,7 +123,10 @@ def register():
 
 
 def unregister():
+    """Idempotent: the at-exit hook and Blender's own add-on disable may both call it."""
     global _registered
+    if not _registered:
+        return
     _registered = False
     del bpy.types.Object.micromesh_base
     del bpy.types.Object.micromesh_source
