@@ -178,15 +178,26 @@ def _apply_modifiers(bpy, obj) -> None:
 
 
 def import_source(bpy, path: Path):
-    """Import ``path`` into the (empty) scene; returns one mesh object named after the file."""
+    """Import ``path`` into the (empty) scene; returns one mesh object named after the file.
+
+    PLY and OBJ go through our own reader (``core.meshio``), which refuses NaN or infinite
+    coordinates, face indices out of range and files cut short: Blender's importers "repair"
+    those silently (NaN becomes 0, faces are dropped); coordinates stay as in the file (no axis
+    conversion), so results line up with the input file. The other formats use Blender's
+    importers; what they produce is checked by the construction (``check_reference``)."""
     ext = path.suffix.lower()
+    if ext in (".ply", ".obj"):
+        from micromesh.core.meshio import read_mesh
+        from micromesh.operators import bl_mesh
+
+        mesh = read_mesh(path)               # MeshFileError (a ValueError) names the problem
+        obj = bpy.data.objects.new(path.stem, bl_mesh.arrays_to_mesh(path.stem, mesh.vertices,
+                                                                      mesh.faces))
+        bpy.context.scene.collection.objects.link(obj)
+        return obj
     before = set(bpy.data.objects)
     try:
-        if ext == ".ply":
-            bpy.ops.wm.ply_import(filepath=str(path))
-        elif ext == ".obj":
-            bpy.ops.wm.obj_import(filepath=str(path))
-        elif ext in (".glb", ".gltf"):
+        if ext in (".glb", ".gltf"):
             _enable(bpy, "io_scene_gltf2")
             bpy.ops.import_scene.gltf(filepath=str(path))
         elif ext == ".fbx":

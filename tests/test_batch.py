@@ -203,3 +203,24 @@ def test_ctrl_c_exits_130_in_one_line_and_leaves_no_files(inputs, tmp_path):
     assert p.returncode == 130, err
     assert err.strip().splitlines()[-1] == "batch.py: interrupted" and "Traceback" not in err
     assert list(out.iterdir()) == []
+
+
+@pytest.mark.parametrize("body, reason", [
+    ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+     "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+     "0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n", "NaN"),
+    ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+     "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+     "0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", "out of range"),
+    ("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "degenerate"),
+])
+def test_bad_geometry_is_refused_not_repaired(tmp_path, body, reason):
+    """Blender's importers turn NaN into 0 and drop bad faces; batch.py reads PLY/OBJ itself
+    and refuses them, and refuses an input with no surface, in one line (exit 1)."""
+    f = tmp_path / ("bad.obj" if body.startswith("v ") else "bad.ply")
+    f.write_text(body)
+    r = run_batch("--input", f, "--output", tmp_path / "out", *QUICK, timeout=120)
+    assert r.returncode == 1, r.stdout + r.stderr
+    lines = _error_lines(r.stderr)
+    assert len(lines) == 1 and reason in lines[0], r.stderr
+    assert "Traceback" not in r.stderr and not list((tmp_path / "out").iterdir())

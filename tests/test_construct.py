@@ -207,6 +207,17 @@ def test_bad_inputs(scene):
     assert s.subdivide_at == (10, 20) and s.reparameterize is False and s.w_sv == 2.0
 
 
+def test_degenerate_only_input_is_refused():
+    """Only zero-area faces (all vertices on a line): refused in words, not 'PSNR inf'."""
+    v = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]], float)
+    flat = TriMesh(v, np.array([[0, 1, 2], [1, 2, 3], [0, 2, 3]]))
+    for base in (None, flat):
+        with pytest.raises(ConstructError, match="degenerate"):
+            construct(flat, base, None, small())
+    with pytest.raises(ConstructError, match="degenerate"):
+        staged_baseline(flat, flat, 1)
+
+
 def test_time_limit_compresses_schedule(scene):
     ref, base = scene
     s = small(iterations=100000, subdivide_at=(50000, 90000), time_limit_s=4.0,

@@ -22,9 +22,21 @@ def device(name: str) -> torch.device:
     return torch.device(name)
 
 
+def check_reference(reference: TriMesh) -> None:
+    """Refuse a reference with nothing to see: no extent, or only degenerate faces."""
+    if not isinstance(reference, TriMesh):
+        raise ConstructError("the reference must be a core.mesh.TriMesh")
+    diag = reference.bbox_diagonal
+    area = reference.face_areas
+    if not diag > 0 or not (area > 1e-12 * diag * diag).any():
+        raise ConstructError(f"the input has no surface: all {reference.n_faces} faces are "
+                             "degenerate (zero area)")
+
+
 def check_inputs(reference: TriMesh, base: TriMesh) -> None:
     if not isinstance(reference, TriMesh) or not isinstance(base, TriMesh):
         raise ConstructError("reference and base must be core.mesh.TriMesh")
+    check_reference(reference)
     if base.n_faces > reference.n_faces * 4:
         raise ConstructError("the base mesh has more faces than the reference; is it swapped?")
 

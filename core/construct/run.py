@@ -26,7 +26,7 @@ from ..render import warm_up
 from ..settings import ConstructSettings
 from ..threads import set_threads
 from .finalise import finalise
-from .frame import check_inputs, device as torch_device, fixed_levels, unit_cameras
+from .frame import check_inputs, check_reference, device as torch_device, fixed_levels, unit_cameras
 from .params import Parameters
 from .scene import Scene, bake
 from .schedule import Schedule
@@ -116,6 +116,7 @@ def _base(reference: TriMesh, s: ConstructSettings, progress, should_stop) -> tu
 
 def _construct(reference, base, cameras, settings, progress, should_stop, levels) -> ConstructResult:
     s = settings.validate()
+    check_reference(reference)
     set_threads(s.threads)
     dev = torch_device(s.device)
     # Compile the renderer's kernels first: a fresh checkout's JIT (about a minute) must not
