@@ -213,6 +213,7 @@ def test_ctrl_c_exits_130_in_one_line_and_leaves_no_files(inputs, tmp_path):
      "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
      "0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", "out of range"),
     ("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "degenerate"),
+    ("v 0 0 0\nv 1 0 0\n", "no faces"),
 ])
 def test_bad_geometry_is_refused_not_repaired(tmp_path, body, reason):
     """Blender's importers turn NaN into 0 and drop bad faces; batch.py reads PLY/OBJ itself
