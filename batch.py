@@ -16,6 +16,7 @@ import argparse
 import json
 import os
 import sys
+import threading
 import time
 import traceback
 from pathlib import Path
@@ -38,6 +39,30 @@ EXIT_CODES = """exit status:
 
 class BatchError(ValueError):
     """Bad input: reported as one line, exit status 2."""
+
+
+class Interrupt:
+    """Ctrl-C: during a construction it asks the construction to stop at its next iteration
+    (``should_stop``), so the stop never lands inside a compiled kernel or a thread pool;
+    elsewhere, or at a second Ctrl-C, it interrupts at once (KeyboardInterrupt)."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self.constructing = False
+
+    def __call__(self, signum, frame) -> None:
+        again, self.requested = self.requested, True
+        if again or not self.constructing:
+            raise KeyboardInterrupt
+
+    def should_stop(self) -> bool:
+        return self.requested
+
+    def install(self) -> None:
+        import signal
+
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, self)
 
 
 def _in_blender() -> bool:
@@ -229,7 +254,7 @@ def _enable(bpy, module: str) -> None:
 
 
 # ------------------------------------------------------------------ one input
-def process(bpy, pkg, source, args, settings, out) -> dict:
+def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict:
     """Base mesh, cameras, construction, write-back, save: the add-on's steps, headless.
     ``out``: the result's :class:`OutputSet` (committed here, when every file is written)."""
     from micromesh.operators import bl_mesh, cameras_io, pipeline, writeback
@@ -264,8 +289,16 @@ def process(bpy, pkg, source, args, settings, out) -> dict:
             extra = f" PSNR {ps:.2f}" if isinstance(ps, (int, float)) and ps == ps else ""
             print(f"[{name}] {phase} {it}/{tot}{extra} ({now - t0:.1f} s)", flush=True)
 
-    outcome = pipeline.run(reference, base_tm, cams, settings, progress, lambda: False,
-                           level=args.level, method=args.method)
+    interrupt.constructing = True
+    try:
+        outcome = pipeline.run(reference, base_tm, cams, settings, progress,
+                               interrupt.should_stop, level=args.level, method=args.method)
+    except pipeline.PipelineCancelled:
+        raise KeyboardInterrupt from None
+    finally:
+        interrupt.constructing = False
+    if interrupt.requested:
+        raise KeyboardInterrupt
     m = outcome.metrics
     if "base" in m:
         b = m["base"]
@@ -351,6 +384,8 @@ def main(argv: list[str] | None = None) -> int:
 
         props.register()
     failures = crashes = 0
+    interrupt = Interrupt()
+    interrupt.install()
     try:
         for path, out in zip(jobs, sets):
             label = path.name if path else "demo"
@@ -365,7 +400,7 @@ def main(argv: list[str] | None = None) -> int:
                     else:
                         source = import_source(bpy, path)
                         source.name = out.name
-                    process(bpy, pkg, source, args, settings, out)
+                    process(bpy, pkg, source, args, settings, out, interrupt)
                 except (BatchError, ValueError) as e:
                     failures += 1
                     out.discard()
