@@ -63,12 +63,13 @@ def reference_samples(reference: TriMesh, sample_area: float | None = None
             want = np.ceil(np.log(np.maximum(areas / sample_area, 1.0)) / np.log(4.0))
         level = np.clip(want.astype(np.int64), 1, _MAX_LEVEL)
     corners = reference.vertices[reference.faces]
+    face_normals = reference.face_normals
     pts, normals, weights = [], [], []
     for lv in np.unique(level):
         faces = np.flatnonzero(level == lv)
         w = _subtriangle_centroids(int(lv))
         pts.append(np.einsum("sk,fkc->fsc", w, corners[faces]).reshape(-1, 3))
-        normals.append(np.repeat(reference.face_normals[faces], len(w), axis=0))
+        normals.append(np.repeat(face_normals[faces], len(w), axis=0))
         weights.append(np.repeat(areas[faces] / len(w), len(w)))
     weights = np.concatenate(weights)
     return (np.concatenate(pts), np.concatenate(normals),
@@ -100,8 +101,7 @@ def fit_displacements(mm: MicroMesh, reference: TriMesh, smoothness: float = 1e-
     if smoothness < 0 or iterations < 1 or not density > 0:
         raise FitError("smoothness must be >= 0, iterations >= 1 and density > 0")
     P, D = mm.micro_vertex_base_positions(), mm.micro_vertex_directions()
-    T = mm.tessellate().triangles
-    T = T[(T[:, 0] != T[:, 1]) & (T[:, 1] != T[:, 2]) & (T[:, 2] != T[:, 0])]
+    T = mm.topology.triangles                  # the non-degenerate micro-triangles
     n = mm.n_vertices
     d = mm.displacements.copy()
     if samples is None:
