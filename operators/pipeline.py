@@ -19,7 +19,6 @@ from typing import Callable
 
 import numpy as np
 
-from ..core.base import DecimateCancelled, base_for, differences, topology
 from ..core.bounds import micromesh_shell_volume
 from ..core.cameras import Cameras
 from ..core.construct import ConstructCancelled, construct, staged_baseline
@@ -56,7 +55,7 @@ def run(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
         else:
             res = construct(reference, base, cameras, settings, progress=progress,
                             should_stop=should_stop, levels=levels)
-    except (ConstructCancelled, DecimateCancelled):
+    except ConstructCancelled:
         raise PipelineCancelled("construction cancelled") from None
     if should_stop():
         raise PipelineCancelled("construction cancelled")
@@ -73,16 +72,6 @@ def run(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
 
 def _projection(reference, base, settings, progress, should_stop, levels, level):
     """The staged baseline on ``base`` (or the settings' base) at the given levels."""
-    base_report = None
-    if base is None:
-        built = base_for(reference, settings,
-                         lambda f: progress({"phase": "base", "fraction": 0.5 * f}), should_stop)
-        base, base_report = built.mesh, built.report
-    progress({"phase": "bake", "iteration": 1, "total": 2, "fraction": 0.5})
     lv = levels if levels is not None else (settings.max_level if level is None else level)
-    res = staged_baseline(reference, base, lv, settings, evaluate_metrics=settings.compute_metrics)
-    res.metrics["warnings"] = (base_report["warnings"] if base_report is not None
-                               else differences(topology(reference), topology(base)))
-    if base_report is not None:
-        res.metrics["base"] = base_report
-    return res
+    return staged_baseline(reference, base, lv, settings, evaluate_metrics=settings.compute_metrics,
+                           progress=progress, should_stop=should_stop)

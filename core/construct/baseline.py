@@ -3,6 +3,8 @@ optimiser: the given base at given or uniform levels, area-weighted normals as d
 projection baking, tight bounds, no optimisation."""
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from ..bounds import tight_bounds
@@ -13,20 +15,29 @@ from ..micromesh import MicroMesh
 from ..settings import ConstructSettings, preset
 from ..threads import set_threads
 from .evaluate import evaluate
-from .frame import check_inputs, to_caller_frame
+from .frame import check_inputs, check_reference, prepare_base, to_caller_frame
 from .scene import bake
-from .types import ConstructResult
+from .types import ConstructResult, Progress
 
 
-def staged_baseline(reference: TriMesh, base: TriMesh, level,
+def staged_baseline(reference: TriMesh, base: TriMesh | None, level,
                     settings: ConstructSettings | None = None,
-                    evaluate_metrics: bool = True) -> ConstructResult:
+                    evaluate_metrics: bool = True, progress: Callable | None = None,
+                    should_stop: Callable[[], bool] | None = None) -> ConstructResult:
     """``base`` at ``level`` (one int, or one per face), directions the area-weighted normals,
     displacements by projection baking (nearest of the two ray hits within two mean base edge
-    lengths, nearest-point fallback), tight bounds."""
+    lengths, nearest-point fallback), tight bounds. ``base`` None: the settings' base is built
+    first, as :func:`core.construct.construct` does (``metrics["base"]``); ``metrics["warnings"]``
+    as there. ``progress``/``should_stop`` serve the base building."""
     s = (settings or preset("default")).validate()
-    check_inputs(reference, base)
+    if base is None:
+        check_reference(reference)
+    else:
+        check_inputs(reference, base)
     set_threads(s.threads)
+    base, base_report, warnings = prepare_base(reference, base, s, progress, should_stop)
+    if progress is not None:
+        progress(Progress("bake", 1, 2, 0.0, float("nan"), 0.0))
     timer = PhaseTimer()
     with timer.phase("setup"):
         norm = unit_sphere_normalization(reference.vertices)
@@ -43,5 +54,8 @@ def staged_baseline(reference: TriMesh, base: TriMesh, level,
         with timer.phase("metrics"):
             metrics = evaluate(mm, ref_u, s, bounds)
     metrics["time_s"] = timer.times.get("setup", 0) + timer.times["bake"]
+    metrics["warnings"] = warnings
+    if base_report is not None:
+        metrics["base"] = base_report
     out, b = to_caller_frame(mm, bounds, norm)
     return ConstructResult(out, b, {}, metrics, dict(timer.times), {}, s, norm, mm)

@@ -2,16 +2,19 @@
 the result taken back to the caller's frame."""
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 import torch
 
+from ..base import DecimateCancelled, base_for, differences, topology
 from ..bounds import DirectionBounds
 from ..cameras import Cameras, fibonacci_cameras
 from ..mesh import Normalization, TriMesh
 from ..micromesh import MicroMesh
 from ..microtopology import balance_levels
 from ..settings import ConstructSettings
-from .types import ConstructError
+from .types import ConstructCancelled, ConstructError, Progress
 
 
 def device(name: str) -> torch.device:
@@ -39,6 +42,27 @@ def check_inputs(reference: TriMesh, base: TriMesh) -> None:
     check_reference(reference)
     if base.n_faces > reference.n_faces * 4:
         raise ConstructError("the base mesh has more faces than the reference; is it swapped?")
+
+
+def prepare_base(reference: TriMesh, base: TriMesh | None, s: ConstructSettings,
+                 progress: Callable | None = None, should_stop: Callable[[], bool] | None = None
+                 ) -> tuple[TriMesh, dict | None, list[str]]:
+    """The base to build on and what to say of it: (base, the base builder's report or None,
+    warnings in words). ``base`` None: the settings' base (``core.base.base_for``), with
+    progress reports of phase "base"; its warnings say where it stopped short or differs from
+    the reference. A given base: its topology compared with the reference's."""
+    if base is not None:
+        return base, None, differences(topology(reference), topology(base))
+
+    def report(fraction: float) -> None:
+        if progress is not None:
+            progress(Progress("base", int(100 * fraction), 100, 0.0, float("nan"), 0.0))
+
+    try:
+        built = base_for(reference, s, report, should_stop)
+    except DecimateCancelled:
+        raise ConstructCancelled("construction cancelled") from None
+    return built.mesh, built.report, list(built.report["warnings"])
 
 
 def fixed_levels(base: TriMesh, levels) -> np.ndarray:

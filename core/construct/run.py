@@ -15,7 +15,6 @@ from typing import Callable
 import numpy as np
 import torch
 
-from ..base import DecimateCancelled, base_for, differences, topology
 from ..cameras import Cameras
 from ..lod import effective_micro_triangles
 from ..losses import mean_edge_length
@@ -26,14 +25,15 @@ from ..render import warm_up
 from ..settings import ConstructSettings
 from ..threads import set_threads
 from .finalise import finalise
-from .frame import check_inputs, check_reference, device as torch_device, fixed_levels, unit_cameras
+from .frame import (check_inputs, check_reference, device as torch_device, fixed_levels,
+                    prepare_base, unit_cameras)
 from .params import Parameters
 from .scene import Scene, bake
 from .schedule import Schedule
 from .state import RunState
 from .step import step
 from .subdivision import subdivide
-from .types import ConstructCancelled, ConstructError, ConstructResult, Progress
+from .types import ConstructError, ConstructResult, Progress
 
 
 def construct(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
@@ -101,22 +101,14 @@ def _initial_micromesh(run: RunState) -> MicroMesh:
     return mm.with_displacements(bake(mm, run.scene.ref, run.bake_distance))
 
 
-def _base(reference: TriMesh, s: ConstructSettings, progress, should_stop) -> tuple[TriMesh, dict]:
-    """The settings' base mesh, with progress reports of phase "base"."""
-    def report(fraction: float) -> None:
-        if progress is not None:
-            progress(Progress("base", int(100 * fraction), 100, 0.0, float("nan"), 0.0))
-
-    try:
-        built = base_for(reference, s, report, should_stop)
-    except DecimateCancelled:
-        raise ConstructCancelled("construction cancelled") from None
-    return built.mesh, built.report
-
-
 def _construct(reference, base, cameras, settings, progress, should_stop, levels) -> ConstructResult:
     s = settings.validate()
-    check_reference(reference)
+    if base is None:
+        check_reference(reference)
+        if levels is not None:
+            raise ConstructError("fixed levels need the base mesh they belong to")
+    else:
+        check_inputs(reference, base)
     set_threads(s.threads)
     dev = torch_device(s.device)
     # Compile the renderer's kernels first: a fresh checkout's JIT (about a minute) must not
@@ -124,14 +116,7 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     # building included.
     warm_up(dev, antialias=s.antialias)
     t_start = time.perf_counter()
-    if base is None:
-        if levels is not None:
-            raise ConstructError("fixed levels need the base mesh they belong to")
-        base, base_report = _base(reference, s, progress, should_stop)
-        warnings = list(base_report["warnings"])
-    else:
-        check_inputs(reference, base)
-        base_report, warnings = None, differences(topology(reference), topology(base))
+    base, base_report, warnings = prepare_base(reference, base, s, progress, should_stop)
     fixed = fixed_levels(base, levels) if levels is not None else None
     torch.manual_seed(s.seed)
     rng = np.random.default_rng(s.seed)
@@ -148,7 +133,8 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
         mm = _initial_micromesh(run)
         params = Parameters(run.base, mm, s, run.device, frozen_base=run.fixed is not None)
     if run.fixed is not None:
-        run.event(iteration=0, fixed_levels=True, micro_triangles=effective_micro_triangles(run.fixed, run.base.face_adjacency))
+        run.event(iteration=0, fixed_levels=True,
+                  micro_triangles=effective_micro_triangles(run.fixed, run.base.face_adjacency))
     schedule = Schedule(s, t_start, fixed_levels=run.fixed is not None)
     n_it, views = s.iterations, min(s.views_per_iter, len(cams))
     t_loop, it_done = time.perf_counter(), 0
