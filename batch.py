@@ -257,7 +257,7 @@ def _enable(bpy, module: str) -> None:
 def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict:
     """Base mesh, cameras, construction, write-back, save: the add-on's steps, headless.
     ``out``: the result's :class:`OutputSet` (committed here, when every file is written)."""
-    from micromesh.operators import bl_mesh, cameras_io, pipeline, writeback
+    from micromesh.operators import base_ops, bl_mesh, cameras_io, pipeline, writeback
 
     from micromesh.core.base import target_faces
 
@@ -310,10 +310,7 @@ def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict
     for warning in m.get("warnings", []):
         print(f"[{name}] warning: {warning}", flush=True)
     base = outcome.micromesh.base
-    base_obj = bpy.data.objects.new(f"{name}_base", bl_mesh.arrays_to_mesh(
-        f"{name}_base", base.vertices, base.faces))
-    bpy.context.scene.collection.objects.link(base_obj)
-    base_obj.micromesh_source, base_obj.display_type = source, "WIRE"
+    base_obj = base_ops.link_base(bpy.context, source, base.vertices, base.faces)
     obj = writeback.write_result(bpy.context, source, base_obj, outcome)
     m["total_time_s"] = time.perf_counter() - t0
     bpy.ops.wm.save_as_mainfile(filepath=str(out.temp(".blend")), compress=True)

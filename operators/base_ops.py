@@ -97,18 +97,16 @@ class MICROMESH_OT_make_base(bpy.types.Operator):
 
     @staticmethod
     def _collapse(context, src) -> tuple[TriMesh, list[str]]:
-        """core.base with the panel's targets; its warnings and notes for the report."""
-        from ..core.base import build_base
+        """core.base with the panel's targets, mapped as Construct maps them; the builder's
+        warnings and notes for the report."""
+        from ..core.base import base_for
+        from .construct_op import panel_settings
 
-        s = context.scene.micromesh
         wm = context.window_manager
         wm.progress_begin(0, 100)
         try:
-            built = build_base(bl_mesh.mesh_to_arrays(src),
-                               ratio=s.ratio if s.decimate_mode == "RATIO" else 0.0,
-                               faces=s.target_faces if s.decimate_mode == "TARGET" else 0,
-                               max_error=s.base_max_error, min_quality=s.base_min_quality,
-                               progress=lambda f: wm.progress_update(int(100 * f)))
+            built = base_for(bl_mesh.mesh_to_arrays(src), panel_settings(context.scene),
+                             progress=lambda f: wm.progress_update(int(100 * f)))
         finally:
             wm.progress_end()
         return built.mesh, built.warnings + built.report["notes"]

@@ -41,14 +41,20 @@ def panel_overrides(s) -> dict:
     return out
 
 
+def panel_settings(scene):
+    """The scene's preset with the panel's base targets and budget (what Make Base uses)."""
+    s = scene.micromesh
+    return apply_overrides(preset(s.preset), panel_overrides(s))
+
+
 def scene_settings(scene):
-    """The construction settings of the scene: preset, the panel's base and budget, overrides,
-    preferences (device, threads)."""
+    """The construction settings of the scene: :func:`panel_settings`, then the text
+    overrides and the preferences (device, threads)."""
     from .. import preferences
 
     s = scene.micromesh
-    st = apply_overrides(preset(s.preset), panel_overrides(s))
-    return apply_overrides(st, s.overrides.split() + [f"device={preferences.device()}"])
+    return apply_overrides(panel_settings(scene),
+                           s.overrides.split() + [f"device={preferences.device()}"])
 
 
 def prepare(context, method: str = "auto") -> Prepared:
