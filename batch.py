@@ -176,83 +176,6 @@ def find_inputs(path: str | None) -> list[Path]:
     return [p]
 
 
-# ------------------------------------------------------------------ scene building (bpy)
-def demo_source(bpy, name: str = "demo_rock", subdivisions: int = 7):
-    """A detailed procedural mesh: an icosphere displaced by two procedural textures."""
-    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=subdivisions, radius=1.0)
-    obj = bpy.context.active_object
-    obj.name = name
-    for tex_type, size, strength in (("CLOUDS", 0.6, 0.35), ("VORONOI", 0.25, 0.08)):
-        tex = bpy.data.textures.new(f"{name}_{tex_type.lower()}", tex_type)
-        tex.noise_scale = size
-        mod = obj.modifiers.new(tex_type.title(), "DISPLACE")
-        mod.texture, mod.strength, mod.mid_level = tex, strength, 0.5
-    _apply_modifiers(bpy, obj)
-    return obj
-
-
-def _apply_modifiers(bpy, obj) -> None:
-    dg = bpy.context.evaluated_depsgraph_get()
-    mesh = bpy.data.meshes.new_from_object(obj.evaluated_get(dg))
-    old = obj.data
-    obj.modifiers.clear()
-    obj.data = mesh
-    mesh.name = obj.name
-    if old.users == 0:
-        bpy.data.meshes.remove(old)
-
-
-def import_source(bpy, path: Path):
-    """Import ``path`` into the (empty) scene; returns one mesh object named after the file.
-
-    PLY and OBJ go through our own reader (``core.meshio``), which refuses NaN or infinite
-    coordinates, face indices out of range and files cut short: Blender's importers "repair"
-    those silently (NaN becomes 0, faces are dropped); coordinates stay as in the file (no axis
-    conversion), so results line up with the input file. The other formats use Blender's
-    importers; what they produce is checked by the construction (``check_reference``)."""
-    ext = path.suffix.lower()
-    if ext in (".ply", ".obj"):
-        from micromesh.core.meshio import read_mesh
-        from micromesh.operators import bl_mesh
-
-        mesh = read_mesh(path)               # MeshFileError (a ValueError) names the problem
-        obj = bpy.data.objects.new(path.stem, bl_mesh.arrays_to_mesh(path.stem, mesh.vertices,
-                                                                      mesh.faces))
-        bpy.context.scene.collection.objects.link(obj)
-        return obj
-    before = set(bpy.data.objects)
-    try:
-        if ext in (".glb", ".gltf"):
-            _enable(bpy, "io_scene_gltf2")
-            bpy.ops.import_scene.gltf(filepath=str(path))
-        elif ext == ".fbx":
-            _enable(bpy, "io_scene_fbx")
-            bpy.ops.import_scene.fbx(filepath=str(path))
-        elif ext == ".blend":
-            bpy.ops.wm.open_mainfile(filepath=str(path))
-            before = set()
-    except RuntimeError as e:
-        raise BatchError(f"cannot read: {str(e).strip().splitlines()[-1]}") from None
-    meshes = [o for o in bpy.data.objects if o.type == "MESH" and o not in before
-              and not o.get("micromesh_data") and o.micromesh_source is None]
-    meshes = [o for o in meshes if len(o.data.polygons)]
-    if not meshes:
-        raise BatchError(f"no mesh with faces in {path.name}")
-    obj = max(meshes, key=lambda o: len(o.data.polygons))
-    if len(meshes) > 1 and ext != ".blend":
-        with bpy.context.temp_override(active_object=obj, selected_editable_objects=meshes):
-            bpy.ops.object.join()
-    obj.name = path.stem
-    return obj
-
-
-def _enable(bpy, module: str) -> None:
-    import addon_utils
-
-    if module not in bpy.context.preferences.addons:
-        addon_utils.enable(module, default_set=True)
-
-
 # ------------------------------------------------------------------ one input
 def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict:
     """Base mesh, cameras, construction, write-back, save: the add-on's steps, headless.
@@ -335,45 +258,67 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     t_start = time.perf_counter()
     try:
-        inputs = find_inputs(args.input)
-        import micromesh_path
-
-        pkg = micromesh_path.ensure_package()
-        from micromesh.core.io.output_set import OutputError, OutputSet, check_output_folder, output_names
-        from micromesh.core.settings import SettingsError, apply_overrides, preset
-        from micromesh.core.threads import set_threads
-
-        extra = base_overrides(args) + (budget_overrides(args.budget) if args.budget else [])
-        try:
-            settings = apply_overrides(preset(args.preset), extra + args.overrides)
-        except SettingsError as e:
-            raise BatchError(str(e)) from None
-        if args.level is not None and not 0 <= args.level <= 5:
-            raise BatchError("--level must be within 0..5")
-        if args.level is not None and args.method != "projection":
-            raise BatchError("--level sets the projection method's level: use it with "
-                             "--method projection (the optimiser's levels come from the budget "
-                             "and --set max_level=N)")
-        if args.threads < 0:
-            raise BatchError("--threads must be >= 0 (0: all usable cores)")
-        out_dir = Path(args.output)
-        jobs = inputs or [None]
-        names = output_names(inputs) if inputs else [DEMO_NAME]
-        suffixes = [".blend"] + (["_micromesh.ply"] if args.ply else []) + [".metrics.json"]
-        sets = [OutputSet(out_dir, n, suffixes) for n in names]
-        try:
-            check_output_folder(out_dir)
-        except OutputError as e:
-            raise BatchError(str(e)) from None
-        existing = [p for o in sets for p in o.existing()]
-        if existing and not args.force:
-            raise BatchError(f"{len(existing)} result file(s) exist in {out_dir} ("
-                             f"{', '.join(p.name for p in existing[:3])}"
-                             f"{', ...' if len(existing) > 3 else ''}); --force replaces them")
+        pkg, settings, jobs, sets = check_usage(args)
     except BatchError as e:
         print(f"batch.py: error: {e}", file=sys.stderr, flush=True)
         return 2
+    try:
+        failures, crashes = run_all(pkg, args, settings, jobs, sets)
+    except KeyboardInterrupt:
+        print("batch.py: interrupted", file=sys.stderr, flush=True)
+        return 130
+    done = len(jobs) - failures - crashes
+    print(f"done: {done}/{len(jobs)} in {time.perf_counter() - t_start:.1f} s", flush=True)
+    return 3 if crashes else 1 if failures else 0
+
+
+def check_usage(args: argparse.Namespace):
+    """Everything that can be checked before any work: inputs, settings, options, the output
+    folder and existing results. Returns (package, settings, inputs or [None] for the demo,
+    one OutputSet per input); raises :class:`BatchError`."""
+    inputs = find_inputs(args.input)
+    import micromesh_path
+
+    pkg = micromesh_path.ensure_package()
+    from micromesh.core.io.output_set import OutputError, OutputSet, check_output_folder, output_names
+    from micromesh.core.settings import SettingsError, apply_overrides, preset
+
+    extra = base_overrides(args) + (budget_overrides(args.budget) if args.budget else [])
+    try:
+        settings = apply_overrides(preset(args.preset), extra + args.overrides)
+    except SettingsError as e:
+        raise BatchError(str(e)) from None
+    if args.level is not None and not 0 <= args.level <= 5:
+        raise BatchError("--level must be within 0..5")
+    if args.level is not None and args.method != "projection":
+        raise BatchError("--level sets the projection method's level: use it with "
+                         "--method projection (the optimiser's levels come from the budget "
+                         "and --set max_level=N)")
+    if args.threads < 0:
+        raise BatchError("--threads must be >= 0 (0: all usable cores)")
+    out_dir = Path(args.output)
+    names = output_names(inputs) if inputs else [DEMO_NAME]
+    suffixes = [".blend"] + (["_micromesh.ply"] if args.ply else []) + [".metrics.json"]
+    sets = [OutputSet(out_dir, n, suffixes) for n in names]
+    try:
+        check_output_folder(out_dir)
+    except OutputError as e:
+        raise BatchError(str(e)) from None
+    existing = [p for o in sets for p in o.existing()]
+    if existing and not args.force:
+        raise BatchError(f"{len(existing)} result file(s) exist in {out_dir} ("
+                         f"{', '.join(p.name for p in existing[:3])}"
+                         f"{', ...' if len(existing) > 3 else ''}); --force replaces them")
+    return pkg, settings, inputs or [None], sets
+
+
+def run_all(pkg, args, settings, jobs: list, sets: list) -> tuple[int, int]:
+    """Each input in a fresh scene, its files written as a set (removed again when it fails);
+    returns (failed inputs, internal errors). Ctrl-C raises KeyboardInterrupt."""
     import bpy
+
+    from micromesh.core.threads import set_threads
+    from micromesh.operators import sources
 
     set_threads(args.threads or settings.threads)
     if not hasattr(bpy.types.Object, "micromesh_source"):
@@ -383,36 +328,28 @@ def main(argv: list[str] | None = None) -> int:
     failures = crashes = 0
     interrupt = Interrupt()
     interrupt.install()
-    try:
-        for path, out in zip(jobs, sets):
-            label = path.name if path else "demo"
-            bpy.ops.wm.read_factory_settings(use_empty=True)
+    for path, out in zip(jobs, sets):
+        label = path.name if path else "demo"
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        try:
             with out:
-                try:
-                    if path is None:
-                        source = demo_source(bpy, DEMO_NAME, subdivisions=args.demo_subdivisions)
-                        print(f"[demo] procedural source '{source.name}': "
-                              f"{sum(len(p.vertices) - 2 for p in source.data.polygons)} triangles",
-                              flush=True)
-                    else:
-                        source = import_source(bpy, path)
-                        source.name = out.name
-                    process(bpy, pkg, source, args, settings, out, interrupt)
-                except (BatchError, ValueError) as e:
-                    failures += 1
-                    out.discard()
-                    print(f"batch.py: error: {label}: {e}", file=sys.stderr, flush=True)
-                except Exception:
-                    crashes += 1
-                    out.discard()
-                    print(f"batch.py: internal error on {label}:", file=sys.stderr, flush=True)
-                    traceback.print_exc()
-    except KeyboardInterrupt:
-        print("batch.py: interrupted", file=sys.stderr, flush=True)
-        return 130
-    done = len(jobs) - failures - crashes
-    print(f"done: {done}/{len(jobs)} in {time.perf_counter() - t_start:.1f} s", flush=True)
-    return 3 if crashes else 1 if failures else 0
+                if path is None:
+                    source = sources.demo_source(DEMO_NAME, subdivisions=args.demo_subdivisions)
+                    print(f"[demo] procedural source '{source.name}': "
+                          f"{sum(len(p.vertices) - 2 for p in source.data.polygons)} triangles",
+                          flush=True)
+                else:
+                    source = sources.import_source(path)
+                    source.name = out.name
+                process(bpy, pkg, source, args, settings, out, interrupt)
+        except (BatchError, ValueError) as e:
+            failures += 1
+            print(f"batch.py: error: {label}: {e}", file=sys.stderr, flush=True)
+        except Exception:
+            crashes += 1
+            print(f"batch.py: internal error on {label}:", file=sys.stderr, flush=True)
+            traceback.print_exc()
+    return failures, crashes
 
 
 def _exit(code: int) -> None:

@@ -1,0 +1,87 @@
+"""The source object of a headless run (``batch.py``): the procedural demo, or one mesh
+object imported from a file into the (empty) scene."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import bpy
+
+from ..core.meshio import read_mesh
+from . import bl_mesh
+
+
+class SourceError(ValueError):
+    """A file that holds no usable mesh; the message says why, in one line."""
+
+
+def demo_source(name: str = "demo_rock", subdivisions: int = 7):
+    """A detailed procedural mesh: an icosphere displaced by two procedural textures."""
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=subdivisions, radius=1.0)
+    obj = bpy.context.active_object
+    obj.name = name
+    for tex_type, size, strength in (("CLOUDS", 0.6, 0.35), ("VORONOI", 0.25, 0.08)):
+        tex = bpy.data.textures.new(f"{name}_{tex_type.lower()}", tex_type)
+        tex.noise_scale = size
+        mod = obj.modifiers.new(tex_type.title(), "DISPLACE")
+        mod.texture, mod.strength, mod.mid_level = tex, strength, 0.5
+    _apply_modifiers(obj)
+    return obj
+
+
+def _apply_modifiers(obj) -> None:
+    dg = bpy.context.evaluated_depsgraph_get()
+    mesh = bpy.data.meshes.new_from_object(obj.evaluated_get(dg))
+    old = obj.data
+    obj.modifiers.clear()
+    obj.data = mesh
+    mesh.name = obj.name
+    if old.users == 0:
+        bpy.data.meshes.remove(old)
+
+
+def import_source(path: Path):
+    """Import ``path`` into the (empty) scene; returns one mesh object named after the file.
+
+    PLY and OBJ go through our own reader (``core.meshio``), which refuses NaN or infinite
+    coordinates, face indices out of range and files cut short: Blender's importers "repair"
+    those silently (NaN becomes 0, faces are dropped); coordinates stay as in the file (no axis
+    conversion), so results line up with the input file. The other formats use Blender's
+    importers; what they produce is checked by the construction (``check_reference``)."""
+    ext = path.suffix.lower()
+    if ext in (".ply", ".obj"):
+        mesh = read_mesh(path)               # MeshFileError (a ValueError) names the problem
+        obj = bpy.data.objects.new(path.stem, bl_mesh.arrays_to_mesh(path.stem, mesh.vertices,
+                                                                      mesh.faces))
+        bpy.context.scene.collection.objects.link(obj)
+        return obj
+    before = set(bpy.data.objects)
+    try:
+        if ext in (".glb", ".gltf"):
+            _enable("io_scene_gltf2")
+            bpy.ops.import_scene.gltf(filepath=str(path))
+        elif ext == ".fbx":
+            _enable("io_scene_fbx")
+            bpy.ops.import_scene.fbx(filepath=str(path))
+        elif ext == ".blend":
+            bpy.ops.wm.open_mainfile(filepath=str(path))
+            before = set()
+    except RuntimeError as e:
+        raise SourceError(f"cannot read: {str(e).strip().splitlines()[-1]}") from None
+    meshes = [o for o in bpy.data.objects if o.type == "MESH" and o not in before
+              and not o.get("micromesh_data") and o.micromesh_source is None]
+    meshes = [o for o in meshes if len(o.data.polygons)]
+    if not meshes:
+        raise SourceError(f"no mesh with faces in {path.name}")
+    obj = max(meshes, key=lambda o: len(o.data.polygons))
+    if len(meshes) > 1 and ext != ".blend":
+        with bpy.context.temp_override(active_object=obj, selected_editable_objects=meshes):
+            bpy.ops.object.join()
+    obj.name = path.stem
+    return obj
+
+
+def _enable(module: str) -> None:
+    import addon_utils
+
+    if module not in bpy.context.preferences.addons:
+        addon_utils.enable(module, default_set=True)
