@@ -15,7 +15,7 @@ from .mesh import TriMesh
 from .microtopology import (
     LevelError, MicroTopology, _as_levels, _level_grid, _level_triangles, _snap_targets,
     balance_levels, bird_order, build_topology, count_micro_vertices, is_balanced,
-    MAX_LEVEL,
+    BUILD_MAX_LEVEL, MAX_LEVEL,
 )
 
 
@@ -155,7 +155,8 @@ class MicroMesh:
 
     def subdivided(self, mask: np.ndarray | None = None) -> "MicroMesh":
         """Faces in ``mask`` (bool (nf,) or face indices; default all) go up one level
-        (capped at 5), then the levels are rebalanced and displacements resampled."""
+        (capped at ``BUILD_MAX_LEVEL``), then the levels are rebalanced and displacements
+        resampled."""
         lv = self.levels.copy()
         if mask is None:
             lv += 1
@@ -164,7 +165,7 @@ class MicroMesh:
             if mk.dtype == bool and mk.shape != lv.shape:
                 raise MicroMeshError(f"mask must be ({len(lv)},) bool or face indices")
             lv[mk] += 1
-        return self.with_levels(balance_levels(self.base, np.minimum(lv, MAX_LEVEL)))
+        return self.with_levels(balance_levels(self.base, np.minimum(lv, BUILD_MAX_LEVEL)))
 
     def _resample(self, topo: MicroTopology) -> tuple[np.ndarray, np.ndarray]:
         nb = topo.n_base_vertices
@@ -213,7 +214,6 @@ class MicroMesh:
 def _locate(topo: MicroTopology, faces: np.ndarray, bary: np.ndarray
             ) -> tuple[np.ndarray, np.ndarray]:
     """See :meth:`MicroMesh.locate`."""
-    q = len(faces)
     L = topo.levels[faces]
     S = (1 << L).astype(np.int64)
     U, V = bary[:, 1] * S, bary[:, 2] * S

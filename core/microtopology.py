@@ -16,7 +16,10 @@ import scipy.sparse as sp
 
 from .mesh import TriMesh
 
-MAX_LEVEL = 5
+# Levels a topology can hold: micromesh-tools writes up to 6; constructions and exports
+# stop at BUILD_MAX_LEVEL, the ray-tracing hardware's and NVIDIA's reference reader's limit.
+MAX_LEVEL = 7
+BUILD_MAX_LEVEL = 5
 
 
 class LevelError(ValueError):

@@ -8,6 +8,7 @@ from hypothesis import given, settings, strategies as st
 from shapes import icosahedron, icosphere, torus
 from core.mesh import TriMesh
 from core.microtopology import (
+    MAX_LEVEL,
     LevelError, balance_levels, barycentric_weights, bird_index, bird_order, build_topology,
     count_micro_vertices, edge_flags, level_grid, level_triangles, n_micro_triangles,
     n_micro_vertices, snap_targets, umajor_index,
@@ -76,7 +77,7 @@ def test_bird_is_permutation_with_corners_first(level):
 
 def test_bad_levels_rejected():
     with pytest.raises(LevelError):
-        level_grid(6)
+        level_grid(MAX_LEVEL + 1)
     with pytest.raises(LevelError):
         balance_levels(icosahedron(), np.zeros(3))
     with pytest.raises(LevelError):
@@ -94,10 +95,10 @@ def _edge_level_spread(mesh, lv):
 @given(seed=st.integers(0, 2 ** 31 - 1), name=st.sampled_from(sorted(MESHES)))
 def test_balance_property(seed, name):
     mesh = MESHES[name]
-    raw = np.random.default_rng(seed).integers(-1, 8, mesh.n_faces)
+    raw = np.random.default_rng(seed).integers(-1, MAX_LEVEL + 3, mesh.n_faces)
     lv = balance_levels(mesh, raw)
     assert (_edge_level_spread(mesh, lv) <= 1).all()
-    assert (lv >= np.clip(raw, 0, 5)).all() and lv.min() >= 0 and lv.max() <= 5
+    assert (lv >= np.clip(raw, 0, MAX_LEVEL)).all() and lv.min() >= 0 and lv.max() <= MAX_LEVEL
     assert (balance_levels(mesh, lv) == lv).all()  # idempotent
     fl = edge_flags(mesh, lv)
     adj = mesh.face_adjacency

@@ -1,0 +1,174 @@
+"""A micro-mesh to files other tools read: glTF 2.0 (``.gltf`` + ``.bin`` + ``.bary``, or one
+``.glb`` with the ``.bary`` in a buffer view) with ``NV_micromaps``,
+``NV_displacement_micromap`` and ``NV_micromap_tooling``.
+
+Identity triangle mapping (no ``mapIndices``, ``mapOffset`` 0), one group, one value format per
+file: what NVIDIA's reference reader supports. Values are stored in [0, 1] between tight
+per-vertex direction bounds (``directionBounds`` accessor and the ``.bary`` mesh property), so a
+micro-vertex is ``lerp(P + D·bias) + lerp(D·scale)·value``.
+"""
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..bounds import DirectionBounds, normalized_values, tight_bounds
+from ..micromesh import MicroMesh
+from ..microtopology import BUILD_MAX_LEVEL, edge_flags
+from .bary import (LAYOUT_BIRD, LAYOUT_UMAJOR, R11_UNORM_PACK16, R11_UNORM_PACKED_ALIGN32,
+                   BaryFile, Group, TRIANGLE, encode)
+from .bary_values import FORMAT_NAMES, encode_values, quantize11
+from .gltf import Builder, pack_glb
+
+LAYOUTS = {"bird": LAYOUT_BIRD, "umajor": LAYOUT_UMAJOR}
+EXTENSIONS = ["NV_micromaps", "NV_displacement_micromap", "NV_micromap_tooling"]
+# Blender's Z-up to glTF's Y-up, as Blender's own glTF exporter does: (x, y, z) → (x, z, −y).
+Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+
+class ExportError(ValueError):
+    """Options or a micro-mesh that cannot be written."""
+
+
+@dataclass
+class ExportReport:
+    files: list[Path]
+    bytes: int
+    quantization_max: float  # over the bounding-box diagonal
+    quantization_rms: float
+
+
+def stored_values(mm: MicroMesh, bounds: DirectionBounds, value_format: str) -> np.ndarray:
+    """(n,) the value each micro-vertex is stored as, decoded back to [0, 1] (11-bit values
+    rounded, float values as float32)."""
+    t = normalized_values(mm, bounds)
+    if value_format == "r11":
+        return quantize11(t) / 2047.0
+    return t.astype(np.float32).astype(np.float64)
+
+
+def decoded_positions(mm: MicroMesh, bounds: DirectionBounds, values: np.ndarray) -> np.ndarray:
+    """(n, 3) micro-vertex positions a reader computes from the stored values."""
+    interp, D = mm.topology.interp, mm.directions
+    return interp @ (mm.base.vertices + D * bounds.bias[:, None]) + \
+        (interp @ (D * bounds.scale[:, None])) * values[:, None]
+
+
+def quantization_error(mm: MicroMesh, bounds: DirectionBounds | None = None,
+                       value_format: str = "r11") -> tuple[float, float]:
+    """(max, RMS) distance between the stored and the exact micro-vertex positions, over the
+    base's bounding-box diagonal."""
+    b = tight_bounds(mm) if bounds is None else bounds
+    err = np.linalg.norm(decoded_positions(mm, b, stored_values(mm, b, value_format))
+                         - mm.micro_vertex_positions(), axis=1)
+    diag = float(np.linalg.norm(np.ptp(mm.base.vertices, axis=0))) or 1.0
+    return float(err.max(initial=0.0)) / diag, float(np.sqrt((err ** 2).mean())) / diag
+
+
+def to_bary(mm: MicroMesh, bounds: DirectionBounds, value_format: str = "r11",
+            layout: str = "bird") -> BaryFile:
+    """The ``.bary`` of a micro-mesh: values, one group, triangles, per-triangle min/max and
+    the mesh properties (directions, direction bounds, edge flags)."""
+    fmt = FORMAT_NAMES[value_format]
+    ptr, _ = mm.face_values(layout)
+    values = stored_values(mm, bounds, value_format)
+    _, per_face = mm.with_displacements(values).face_values(layout)
+    payload, offsets, count, size = encode_values(fmt, mm.levels, ptr, per_face)
+    tri = np.zeros(len(mm.levels), TRIANGLE)
+    tri["offset"], tri["level"] = offsets, mm.levels
+    starts = ptr[:-1]
+    lo, hi = np.minimum.reduceat(per_face, starts), np.maximum.reduceat(per_face, starts)
+    if fmt == R11_UNORM_PACKED_ALIGN32:
+        minmax = np.stack([quantize11(lo), quantize11(hi)], 1).astype("<u2").tobytes()
+        mm_fmt = R11_UNORM_PACK16
+    else:
+        minmax, mm_fmt = np.stack([lo, hi], 1).astype("<f4").tobytes(), fmt
+    group = Group(0, len(mm.levels), 0, count, int(mm.levels.min(initial=0)),
+                  int(mm.levels.max(initial=0)))
+    return BaryFile(fmt, LAYOUTS[layout], count, size, payload, [group], tri, minmax, mm_fmt,
+                    mm.directions.astype(np.float32),
+                    np.stack([bounds.bias, bounds.scale], 1).astype(np.float32),
+                    edge_flags(mm.base, mm.levels))
+
+
+def write_micromesh(path: str | os.PathLike, mm: MicroMesh, bounds: DirectionBounds | None = None,
+                    *, value_format: str = "r11", layout: str = "bird",
+                    y_up: bool = False) -> ExportReport:
+    """Write ``path`` (``.gltf``: with ``.bin`` and ``.bary`` beside it; ``.glb``: one file).
+    Each file goes to a temporary name first; the ``.gltf`` is renamed last, so a reader never
+    finds one whose companions are missing. ``y_up`` turns Blender's Z-up into glTF's Y-up."""
+    path = Path(path)
+    if path.suffix.lower() not in (".gltf", ".glb"):
+        raise ExportError(f"export to .gltf or .glb, not '{path.suffix}'")
+    if value_format not in FORMAT_NAMES or layout not in LAYOUTS:
+        raise ExportError(f"value format must be one of {sorted(FORMAT_NAMES)} and layout one of "
+                          f"{sorted(LAYOUTS)}, got {value_format!r}, {layout!r}")
+    if mm.levels.max(initial=0) > BUILD_MAX_LEVEL:
+        raise ExportError(f"subdivision levels above {BUILD_MAX_LEVEL} cannot be written: "
+                          "NVIDIA's reader and the ray-tracing hardware stop there")
+    b = tight_bounds(mm) if bounds is None else bounds
+    qmax, qrms = quantization_error(mm, b, value_format)
+    if y_up:
+        mm = MicroMesh(mm.base.with_vertices(mm.base.vertices @ Y_UP.T), mm.directions @ Y_UP.T,
+                       mm.levels, mm.displacements, mm._topology)
+    bary = encode(to_bary(mm, b, value_format, layout))
+    glb = path.suffix.lower() == ".glb"
+    doc, blob = _document(mm, b, path, bary if glb else None)
+    outputs = [(path, pack_glb(doc, blob))] if glb else [
+        (path.with_suffix(".bary"), bary), (path.with_suffix(".bin"), blob),
+        (path, json.dumps(doc, indent=1).encode())]
+    _write_all(outputs)
+    return ExportReport([p for p, _ in outputs], sum(len(d) for _, d in outputs), qmax, qrms)
+
+
+def _document(mm: MicroMesh, bounds: DirectionBounds, path: Path, embedded: bytes | None):
+    g = Builder()
+    base = mm.base
+    idx = g.accessor(base.faces.reshape(-1), "<u4", "indices", target=34963)
+    pos = g.accessor(base.vertices, "<f4", "positions", target=34962, bounds=True)
+    nrm = g.accessor(_unit(base.vertex_normals), "<f4", "normals", target=34962)
+    dirs = g.accessor(mm.directions, "<f4", "directions")
+    dbounds = g.accessor(np.stack([bounds.bias, bounds.scale], 1), "<f4", "direction_bounds")
+    flags = g.accessor(edge_flags(base, mm.levels), "u1", "primitive_flags")
+    levels = g.accessor(mm.levels, "u1", "subdivision_levels")
+    micromap = {"uri": path.with_suffix(".bary").name}
+    if embedded is not None:
+        micromap = {"bufferView": g.view(embedded, "micromap"), "mimeType": "model/vnd.bary"}
+    doc, blob = g.finish(None if embedded is not None else path.with_suffix(".bin").name)
+    common = {"directions": dirs, "directionBounds": dbounds, "primitiveFlags": flags}
+    doc["meshes"] = [{"name": path.stem, "primitives": [{
+        "attributes": {"POSITION": pos, "NORMAL": nrm}, "indices": idx, "mode": 4,
+        "extensions": {"NV_displacement_micromap": {"micromap": 0, **common},
+                       "NV_micromap_tooling": {**common, "subdivisionLevels": levels}}}]}]
+    doc["nodes"] = [{"mesh": 0, "name": path.stem}]
+    doc["scenes"], doc["scene"] = [{"nodes": [0]}], 0
+    doc["extensions"] = {"NV_micromaps": {"micromaps": [micromap]}}
+    doc["extensionsUsed"] = list(EXTENSIONS)
+    return doc, blob
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=1, keepdims=True)
+    return np.where(n > 0, v / np.maximum(n, 1e-300), np.array([0.0, 0.0, 1.0]))
+
+
+def _write_all(outputs: list[tuple[Path, bytes]]) -> None:
+    temps = []
+    try:
+        for p, data in outputs:
+            tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp")
+            temps.append(tmp)
+            with open(tmp, "wb") as f:
+                f.write(data)
+                f.flush()
+                os.fsync(f.fileno())
+        for (p, _), tmp in zip(outputs, temps):
+            os.replace(tmp, p)
+    except OSError as e:
+        for tmp in temps:
+            tmp.unlink(missing_ok=True)
+        raise ExportError(f"cannot write {outputs[-1][0]}: {e.strerror or e}") from None
