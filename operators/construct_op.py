@@ -13,6 +13,7 @@ from functools import partial
 import bpy
 from bpy.props import EnumProperty
 
+from ..core.outcome import Outcome
 from ..core.settings import SettingsError, apply_overrides, preset
 from . import base_ops, bl_mesh, cameras_io, job, pipeline, writeback
 
@@ -23,7 +24,7 @@ class Prepared:
 
     source: bpy.types.Object
     base_obj: bpy.types.Object | None
-    work: object  # callable(progress, should_stop) -> writeback.Outcome
+    work: object  # callable(progress, should_stop) -> core.outcome.Outcome
 
 
 def panel_overrides(s) -> dict:
@@ -101,7 +102,7 @@ def sync_state(scene, state: job.JobState) -> None:
     s.status = state.status_text()
 
 
-def finish(context, prep: Prepared, outcome: writeback.Outcome) -> bpy.types.Object:
+def finish(context, prep: Prepared, outcome: Outcome) -> bpy.types.Object:
     base_obj = prep.base_obj
     if base_obj is None:                # the base the worker built: an object of its own
         base = outcome.micromesh.base

@@ -1,7 +1,6 @@
 """Small operators: install dependencies, presets, face-level override, the run's report image."""
 from __future__ import annotations
 
-import json
 import os
 
 import bpy

@@ -24,7 +24,7 @@ from ..core.cameras import Cameras
 from ..core.construct import ConstructCancelled, construct, staged_baseline
 from ..core.mesh import TriMesh
 from ..core.settings import ConstructSettings, to_dict
-from .writeback import Outcome
+from ..core.outcome import Outcome
 
 
 class PipelineCancelled(Exception):

@@ -7,21 +7,18 @@
 - the base object: optimised positions, per-face ``micromesh_level`` and
   ``micromesh_edge_flags``, per-vertex ``micromesh_direction``;
 - the complete micro-mesh (base, directions, levels, displacements, bounds) as compressed
-  ``.npz`` bytes in the result object's ``micromesh_data`` property, settings / metrics /
+  ``.npz`` bytes (``core.outcome.pack``) in the result object's ``micromesh_data`` property, settings / metrics /
   history as JSON properties, so it survives saving and can be exported without re-running.
 """
 from __future__ import annotations
 
-import io
 import json
-from dataclasses import dataclass, field
 
 import bpy
 import numpy as np
 
-from ..core.bounds import DirectionBounds
-from ..core.mesh import TriMesh
 from ..core.micromesh import MicroMesh
+from ..core.outcome import Outcome, pack, unpack
 from . import bl_mesh
 
 PREVIEW_GROUP = "MicroMesh Displacement Preview"
@@ -31,18 +28,6 @@ DATA_KEY = "micromesh_data"
 LEVEL_COLORS = np.array([[0.05, 0.10, 0.60, 1], [0.05, 0.45, 0.80, 1], [0.10, 0.70, 0.30, 1],
                          [0.85, 0.80, 0.10, 1], [0.90, 0.40, 0.05, 1], [0.80, 0.05, 0.05, 1]],
                         dtype=np.float32)
-
-
-@dataclass
-class Outcome:
-    """A finished construction in world space (what the worker hands to the main thread)."""
-
-    micromesh: MicroMesh
-    bounds: DirectionBounds | None = None   # per base vertex (bias, scale)
-    metrics: dict = field(default_factory=dict)
-    settings: dict = field(default_factory=dict)
-    history: dict = field(default_factory=dict)
-    method: str = "projection"
 
 
 # ---------------------------------------------------------------- attributes
@@ -68,18 +53,6 @@ def level_colors(levels: np.ndarray) -> np.ndarray:
 
 
 # ---------------------------------------------------------------- persistence
-def pack(out: Outcome) -> bytes:
-    mm = out.micromesh
-    arrays = dict(base_vertices=mm.base.vertices, base_faces=mm.base.faces,
-                  directions=mm.directions, levels=mm.levels, displacements=mm.displacements,
-                  edge_flags=mm.topology.flags)
-    if out.bounds is not None:
-        arrays["bounds_bias"], arrays["bounds_scale"] = out.bounds.bias, out.bounds.scale
-    buf = io.BytesIO()
-    np.savez_compressed(buf, **arrays)
-    return buf.getvalue()
-
-
 def store_bytes(obj, key: str, data: bytes) -> None:
     """``obj[key] = data``, safely: assigning bytes to an ID property that already holds
     bytes keeps them only up to the first zero byte (bpy 4.2-5.0), so the old one goes first;
@@ -92,19 +65,11 @@ def store_bytes(obj, key: str, data: bytes) -> None:
                            f"'{key}' on '{obj.name}'")
 
 
-def unpack(data: bytes) -> dict:
-    with np.load(io.BytesIO(bytes(data))) as z:
-        return {k: z[k] for k in z.files}
-
-
 def load_outcome(obj: bpy.types.Object) -> Outcome:
     """The complete micro-mesh stored on a result object (after reopening a ``.blend``)."""
     if DATA_KEY not in obj:
         raise ValueError(f"object '{obj.name}' holds no micro-mesh (run Construct first)")
-    d = unpack(obj[DATA_KEY])
-    mm = MicroMesh(TriMesh(d["base_vertices"], d["base_faces"]), d["directions"], d["levels"],
-                   d["displacements"])
-    bounds = DirectionBounds(d["bounds_bias"], d["bounds_scale"]) if "bounds_bias" in d else None
+    mm, bounds = unpack(obj[DATA_KEY])
     loads = lambda k: json.loads(obj.get(k, "{}"))  # noqa: E731
     return Outcome(mm, bounds, loads("micromesh_metrics"), loads("micromesh_settings"),
                    loads("micromesh_history"), obj.get("micromesh_method", ""))
