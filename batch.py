@@ -4,9 +4,10 @@ With no ``--input`` it builds the built-in demo: a procedurally generated detail
 icosphere displaced by Blender's procedural textures, made at run time), decimated into a base
 (``core.base``: topology kept, error and triangle shape bounded) and turned into a micro-mesh
 within a storage budget. With ``--input`` (one file or a folder of .ply / .obj / .glb / .gltf /
-.fbx / .blend) it does the same per input: the same workflow as the add-on's panel
-(``operators.pipeline``). Per input NAME it writes ``NAME.blend`` (holding ``NAME_micromesh``
-and ``NAME_base``), ``NAME.metrics.json`` and with ``--ply`` ``NAME_micromesh.ply``: NAME is the
+.fbx / .blend; a micro-mesh glTF is read as its tessellation) it does the same per input: the
+same workflow as the add-on's panel (``operators.pipeline``). Per input NAME it writes ``NAME.blend`` (holding ``NAME_micromesh``
+and ``NAME_base``), the micro-mesh for other tools (``NAME.gltf`` + ``.bin`` + ``.bary``; or
+``--export glb``), ``NAME.metrics.json`` and with ``--ply`` ``NAME_micromesh.ply``: NAME is the
 input's stem (``stem_ext`` where two inputs share one), the files appear together when the input
 is done (the metrics file last), and existing results are kept unless ``--force``.
 """
@@ -111,6 +112,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         "'0': none")
     p.add_argument("--cameras", type=int, default=0,
                    help="place this many Fibonacci camera objects and construct with them")
+    p.add_argument("--export", choices=("gltf", "glb", "none"), default="gltf",
+                   help="the micro-mesh for other tools: NAME.gltf + .bin + .bary (default), "
+                        "one NAME.glb, or none")
+    p.add_argument("--values", choices=("r11", "float"), default="r11",
+                   help="stored values: 11-bit packed (default) or 32-bit float")
+    p.add_argument("--layout", choices=("bird", "umajor"), default="bird",
+                   help="micro-vertex order: bird curve (default, the hardware's) or u-major")
     p.add_argument("--ply", action="store_true", help="also write NAME_micromesh.ply")
     p.add_argument("--force", action="store_true", help="replace results that already exist")
     p.add_argument("--threads", type=int, default=0, help="CPU threads (0: all usable cores)")
@@ -237,6 +245,8 @@ def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict
     obj = writeback.write_result(bpy.context, source, base_obj, outcome)
     m["total_time_s"] = time.perf_counter() - t0
     bpy.ops.wm.save_as_mainfile(filepath=str(out.temp(".blend")), compress=True)
+    if args.export != "none":
+        m["export"] = export(outcome, source, args, out)
     if args.ply:
         from micromesh.core.meshio import write_ply
 
@@ -252,6 +262,26 @@ def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict
           f"{m['micro_triangles']} micro-triangles, shell volume {m['shell_volume']:.5f} "
           f"(unit sphere), {outcome.method}, {m['total_time_s']:.1f} s -> {blend}", flush=True)
     return m
+
+
+def export_suffixes(args: argparse.Namespace) -> list[str]:
+    return {"gltf": [".gltf", ".bin", ".bary"], "glb": [".glb"], "none": []}[args.export]
+
+
+def export(outcome, source, args, out) -> dict:
+    """The micro-mesh as glTF + .bary into the output set, in the input file's coordinates
+    (``sources``: files Blender's importers turned Z-up are turned back to Y-up)."""
+    from micromesh.core.io.micromesh_export import micromesh_files
+    from micromesh.operators.sources import export_y_up
+
+    files, rep = micromesh_files(out.final(f".{args.export}"), outcome.micromesh,
+                                 outcome.bounds, value_format=args.values, layout=args.layout,
+                                 y_up=export_y_up(source))
+    for path, data in files:
+        out.temp(path.suffix).write_bytes(data)
+    return {"files": [p.name for p, _ in files], "bytes": rep.bytes,
+            "values": args.values, "layout": args.layout,
+            "quantization_max": rep.quantization_max, "quantization_rms": rep.quantization_rms}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -298,7 +328,8 @@ def check_usage(args: argparse.Namespace):
         raise BatchError("--threads must be >= 0 (0: all usable cores)")
     out_dir = Path(args.output)
     names = output_names(inputs) if inputs else [DEMO_NAME]
-    suffixes = [".blend"] + (["_micromesh.ply"] if args.ply else []) + [".metrics.json"]
+    suffixes = [".blend"] + export_suffixes(args) + (["_micromesh.ply"] if args.ply else []) \
+        + [".metrics.json"]
     sets = [OutputSet(out_dir, n, suffixes) for n in names]
     try:
         check_output_folder(out_dir)

@@ -153,7 +153,7 @@ def object_with_mesh(context, name: str, mesh: bpy.types.Mesh, source: bpy.types
 
     An existing object of that name for which ``reuse(obj)`` is true gets the new mesh (its old
     mesh is freed when nothing else uses it); otherwise a new object is linked into the
-    source's first collection (the scene's collection if it has none).
+    source's first collection (the scene's collection if it has none or there is no source).
     """
     old = bpy.data.objects.get(name)
     if old is not None and reuse(old):
@@ -162,6 +162,7 @@ def object_with_mesh(context, name: str, mesh: bpy.types.Mesh, source: bpy.types
             bpy.data.meshes.remove(old_mesh)
         return old, True
     obj = bpy.data.objects.new(name, mesh)
-    coll = source.users_collection[0] if source.users_collection else context.scene.collection
+    coll = (source.users_collection[0] if source is not None and source.users_collection
+            else context.scene.collection)
     coll.objects.link(obj)
     return obj, False

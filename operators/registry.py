@@ -4,9 +4,9 @@ from __future__ import annotations
 import bpy
 from bpy.app.handlers import persistent
 
-from . import base_ops, construct_op, deps, job, misc_ops, props
+from . import base_ops, construct_op, deps, files_op, job, misc_ops, props
 
-CLASSES = (*base_ops.CLASSES, *construct_op.CLASSES, *misc_ops.CLASSES)
+CLASSES = (*base_ops.CLASSES, *construct_op.CLASSES, *misc_ops.CLASSES, *files_op.CLASSES)
 
 
 @persistent
@@ -23,6 +23,8 @@ def register():
     props.register()
     for c in CLASSES:
         bpy.utils.register_class(c)
+    for menu, draw in files_op.MENUS:
+        menu.append(draw)
     bpy.app.handlers.load_pre.append(_stop_on_load)
 
 
@@ -33,6 +35,8 @@ def unregister():
     atexit.unregister(job.stop_active)
     if _stop_on_load in bpy.app.handlers.load_pre:
         bpy.app.handlers.load_pre.remove(_stop_on_load)
+    for menu, draw in files_op.MENUS:
+        menu.remove(draw)
     for c in reversed(CLASSES):
         bpy.utils.unregister_class(c)
     props.unregister()

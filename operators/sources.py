@@ -6,12 +6,24 @@ from pathlib import Path
 
 import bpy
 
+from ..core.io.micromesh_import import MicromeshFileError, is_micromesh_file, read_micromesh
 from ..core.meshio import read_mesh
 from . import bl_mesh
 
 
+FILE_FRAME = "micromesh_file_frame"   # set on sources whose coordinates are the file's own
+
+
 class SourceError(ValueError):
     """A file that holds no usable mesh; the message says why, in one line."""
+
+
+def export_y_up(source) -> bool:
+    """Whether an export of ``source``'s result turns Blender's Z-up into glTF's Y-up: not for
+    sources read with their file's own coordinates (PLY, OBJ, micro-mesh glTF), so results
+    line up with the input file; yes for everything in Blender's frame (the demo, ``.blend``,
+    and what Blender's importers turned Z-up), as Blender's own glTF exporter does."""
+    return not bool(source.get(FILE_FRAME, False))
 
 
 def demo_source(name: str = "demo_rock", subdivisions: int = 7):
@@ -45,14 +57,25 @@ def import_source(path: Path):
     PLY and OBJ go through our own reader (``core.meshio``), which refuses NaN or infinite
     coordinates, face indices out of range and files cut short: Blender's importers "repair"
     those silently (NaN becomes 0, faces are dropped); coordinates stay as in the file (no axis
-    conversion), so results line up with the input file. The other formats use Blender's
-    importers; what they produce is checked by the construction (``check_reference``)."""
+    conversion), so results line up with the input file. A micro-mesh glTF (one with
+    ``NV_displacement_micromap``) is read by ``core.io`` and its tessellation is the source.
+    The other formats use Blender's importers; what they produce is checked by the
+    construction (``check_reference``)."""
     ext = path.suffix.lower()
+    mesh = None
     if ext in (".ply", ".obj"):
         mesh = read_mesh(path)               # MeshFileError (a ValueError) names the problem
+    elif ext in (".glb", ".gltf") and is_micromesh_file(path):
+        try:                                 # the micro-mesh's own surface is the reference
+            tess = read_micromesh(path).micromesh().tessellate()
+        except MicromeshFileError as e:
+            raise SourceError(str(e)) from None
+        mesh = tess.to_trimesh()
+    if mesh is not None:
         obj = bpy.data.objects.new(path.stem, bl_mesh.arrays_to_mesh(path.stem, mesh.vertices,
                                                                       mesh.faces))
         bpy.context.scene.collection.objects.link(obj)
+        obj[FILE_FRAME] = True
         return obj
     before = set(bpy.data.objects)
     try:

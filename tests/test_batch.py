@@ -71,10 +71,38 @@ def test_batch_over_a_folder(inputs, tmp_path):
     ensure_package()
     from micromesh.core.meshio import read_mesh
 
+    from micromesh.core.io.micromesh_import import read_micromesh
+
     ply = read_mesh(out / "ball_micromesh.ply")
     assert ply.n_faces == 16 * json.loads((out / "ball.metrics.json").read_text())["metrics"]["base_faces"]
     assert np.allclose(np.linalg.norm(ply.vertices, axis=1), 1.0, atol=0.02)  # on the sphere
+    for name in ("ball", "monkey", "ring", "can"):
+        m = json.loads((out / f"{name}.metrics.json").read_text())["metrics"]
+        assert m["export"]["files"] == [f"{name}.bary", f"{name}.bin", f"{name}.gltf"]
+        mm = read_micromesh(out / f"{name}.gltf").micromesh()
+        assert mm.topology.n_triangles == m["micro_triangles"]
+        assert 0 < m["export"]["quantization_rms"] <= m["export"]["quantization_max"] < 5e-3
+        if name == "ball":   # a PLY: the export is in the file's own coordinates
+            tess = mm.tessellate()
+            assert len(tess.vertices) == ply.n_vertices
+            assert np.abs(np.sort(tess.vertices, 0) - np.sort(ply.vertices, 0)).max() < 5e-3
+        if name == "ring":   # a glTF (Y-up) read by Blender's importer: exported Y-up again
+            ext = np.ptp(mm.base.vertices, axis=0)
+            assert ext[1] < 0.5 * ext[0] and ext[1] < 0.5 * ext[2]
     bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
+def test_a_micromesh_gltf_is_a_reference(inputs, tmp_path):
+    """batch.py exports a micro-mesh, then takes that glTF as an input: the reference is its
+    tessellation, in its own coordinates."""
+    first, second = tmp_path / "first", tmp_path / "second"
+    r = run_batch("--input", inputs / "ball.ply", "--output", first, *QUICK, "--export", "glb")
+    assert r.returncode == 0, r.stdout + r.stderr
+    m1 = json.loads((first / "ball.metrics.json").read_text())["metrics"]
+    r = run_batch("--input", first / "ball.glb", "--output", second, *QUICK)
+    assert r.returncode == 0, r.stdout + r.stderr
+    m2 = json.loads((second / "ball.metrics.json").read_text())["metrics"]
+    assert m2["reference_faces"] == m1["micro_triangles"]
 
 
 @pytest.mark.parametrize("args, reason", [
@@ -169,7 +197,8 @@ def test_same_stem_inputs_keep_both_results_and_results_are_not_replaced(inputs,
              for n in ("a_obj", "a_ply")}
     assert len(faces) == 2                                   # two different results
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        f"{n}{s}" for n in ("a_obj", "a_ply") for s in (".blend", ".metrics.json"))
+        f"{n}{s}" for n in ("a_obj", "a_ply")
+        for s in (".blend", ".gltf", ".bin", ".bary", ".metrics.json"))
     before = (out / "a_ply.metrics.json").read_text()
     again = run_batch("--input", folder, "--output", out, *QUICK, timeout=120)
     assert again.returncode == 2 and "--force" in _error_lines(again.stderr)[0], again.stderr

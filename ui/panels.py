@@ -6,19 +6,8 @@ import json
 
 import bpy
 
-from ..operators import base_ops, job, writeback
-
-
-def _result_object(context):
-    obj = context.active_object
-    if obj is not None and obj.get(writeback.DATA_KEY) is not None:
-        return obj
-    src = base_ops.source_object(context)
-    if src is not None:
-        cand = bpy.data.objects.get(f"{src.name}_micromesh")
-        if cand is not None and cand.get(writeback.DATA_KEY) is not None:
-            return cand
-    return None
+from ..operators import job
+from ..operators.files_op import result_object as _result_object
 
 
 class _Panel:
@@ -160,15 +149,11 @@ class MICROMESH_PT_export(_Panel, bpy.types.Panel):
 
     def draw(self, context):
         layout = self.layout
-        # Operators of the interop issue appear here when they are registered.
-        shown = False
-        for name in dir(bpy.types):
-            if name.startswith("MICROMESH_OT_export"):
-                cls = getattr(bpy.types, name)
-                layout.operator(cls.bl_idname, icon="EXPORT")
-                shown = True
-        if not shown:
-            layout.label(text="Save the .blend: the micro-mesh is stored in it")
+        if _result_object(context) is None:
+            layout.label(text="Construct a micro-mesh first")
+        layout.operator("micromesh.export", icon="EXPORT")
+        layout.operator("micromesh.import_file", icon="IMPORT")
+        layout.label(text="The .blend also keeps the micro-mesh", icon="INFO")
 
 
 CLASSES = (MICROMESH_PT_main, MICROMESH_PT_base, MICROMESH_PT_cameras, MICROMESH_PT_construct,

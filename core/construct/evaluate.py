@@ -6,6 +6,7 @@ import torch
 
 from ..bounds import DirectionBounds, shell_volume, tight_bounds
 from ..cameras import fibonacci_cameras
+from ..io.micromesh_export import quantization_error
 from ..lod import effective_micro_triangles
 from ..mesh import TriMesh
 from ..metrics import crack_edges, geometric_error, isotropy, mmt_formula_bytes, storage_bytes
@@ -19,7 +20,8 @@ def evaluate(mm_unit: MicroMesh, reference_unit: TriMesh, s: ConstructSettings,
              bounds_unit: DirectionBounds | None = None, device=None,
              ref_images: torch.Tensor | None = None) -> dict:
     """PSNR over ``s.eval_views`` Fibonacci views, shell volume, geometric error, isotropy,
-    storage, level histogram and cracks of ``mm_unit`` against ``reference_unit``."""
+    storage, the 11-bit export's quantisation error (over the diagonal), level histogram and
+    cracks of ``mm_unit`` against ``reference_unit``."""
     device = device or torch_device(s.device)
     bounds_unit = bounds_unit if bounds_unit is not None else tight_bounds(mm_unit)
     tess = mm_unit.tessellate()
@@ -53,6 +55,8 @@ def evaluate(mm_unit: MicroMesh, reference_unit: TriMesh, s: ConstructSettings,
     out["bytes"] = st["total"]
     out["bytes_values"] = st["values"]
     out["bytes_mmt"] = mmt_formula_bytes(mm_unit.levels, base.n_vertices)
+    if mm_unit.levels.max(initial=0) <= 5:   # what an export stores (11-bit values)
+        out["quantization_max"], out["quantization_rms"] = quantization_error(mm_unit, bounds_unit)
     out["micro_triangles"] = effective_micro_triangles(mm_unit.levels, base.face_adjacency)
     out["base_faces"] = int(base.n_faces)
     out["levels_hist"] = np.bincount(mm_unit.levels, minlength=6).tolist()

@@ -95,12 +95,13 @@ def to_bary(mm: MicroMesh, bounds: DirectionBounds, value_format: str = "r11",
                     edge_flags(mm.base, mm.levels))
 
 
-def write_micromesh(path: str | os.PathLike, mm: MicroMesh, bounds: DirectionBounds | None = None,
-                    *, value_format: str = "r11", layout: str = "bird",
-                    y_up: bool = False) -> ExportReport:
-    """Write ``path`` (``.gltf``: with ``.bin`` and ``.bary`` beside it; ``.glb``: one file).
-    Each file goes to a temporary name first; the ``.gltf`` is renamed last, so a reader never
-    finds one whose companions are missing. ``y_up`` turns Blender's Z-up into glTF's Y-up."""
+def micromesh_files(path: str | os.PathLike, mm: MicroMesh,
+                    bounds: DirectionBounds | None = None, *, value_format: str = "r11",
+                    layout: str = "bird", y_up: bool = False
+                    ) -> tuple[list[tuple[Path, bytes]], ExportReport]:
+    """The files of ``path`` (``.gltf``: with ``.bin`` and ``.bary`` beside it, named from its
+    stem; ``.glb``: one file) as (path, bytes), the ``.gltf`` last, and the report.
+    ``y_up`` turns Blender's Z-up into glTF's Y-up."""
     path = Path(path)
     if path.suffix.lower() not in (".gltf", ".glb"):
         raise ExportError(f"export to .gltf or .glb, not '{path.suffix}'")
@@ -118,11 +119,19 @@ def write_micromesh(path: str | os.PathLike, mm: MicroMesh, bounds: DirectionBou
     bary = encode(to_bary(mm, b, value_format, layout))
     glb = path.suffix.lower() == ".glb"
     doc, blob = _document(mm, b, path, bary if glb else None)
-    outputs = [(path, pack_glb(doc, blob))] if glb else [
+    files = [(path, pack_glb(doc, blob))] if glb else [
         (path.with_suffix(".bary"), bary), (path.with_suffix(".bin"), blob),
         (path, json.dumps(doc, indent=1).encode())]
-    _write_all(outputs)
-    return ExportReport([p for p, _ in outputs], sum(len(d) for _, d in outputs), qmax, qrms)
+    return files, ExportReport([p for p, _ in files], sum(len(d) for _, d in files), qmax, qrms)
+
+
+def write_micromesh(path: str | os.PathLike, mm: MicroMesh, bounds: DirectionBounds | None = None,
+                    **options) -> ExportReport:
+    """Write :func:`micromesh_files`: each file under a temporary name first, then renamed,
+    the ``.gltf`` last, so a reader never finds one whose companions are missing."""
+    files, report = micromesh_files(path, mm, bounds, **options)
+    _write_all(files)
+    return report
 
 
 def _document(mm: MicroMesh, bounds: DirectionBounds, path: Path, embedded: bytes | None):

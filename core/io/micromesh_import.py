@@ -81,6 +81,17 @@ class MicromeshFile:
         return mm.with_displacements(d)
 
 
+def is_micromesh_file(path: str | os.PathLike) -> bool:
+    """Whether a ``.gltf``/``.glb`` has a primitive with ``NV_displacement_micromap`` (False
+    for files that are not glTF at all: the caller's mesh reader says why)."""
+    try:
+        doc = Document(path)
+    except (GltfError, OSError):
+        return False
+    return any("NV_displacement_micromap" in p.get("extensions", {})
+               for m in doc.doc.get("meshes", []) for p in m.get("primitives", []))
+
+
 def read_micromesh(path: str | os.PathLike) -> MicromeshFile:
     """Read a ``.gltf``/``.glb`` micro-mesh (every primitive with ``NV_displacement_micromap``
     in the default scene, node transforms applied, primitives merged)."""
