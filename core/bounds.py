@@ -100,3 +100,20 @@ def micromesh_shell_volume(mm: MicroMesh, bounds: DirectionBounds | None = None)
     """Shell volume of a micro-mesh under its tight bounds (or the given ones)."""
     b = tight_bounds(mm) if bounds is None else bounds
     return shell_volume(mm.base.vertices, mm.base.faces, mm.directions, b)
+
+
+def unit_bounds(n: int) -> DirectionBounds:
+    """Bias 0, scale 1 for ``n`` vertices: the bounds of a :func:`baked` micro-mesh."""
+    return DirectionBounds(np.zeros(n), np.ones(n))
+
+
+def baked(mm: MicroMesh, bounds: DirectionBounds) -> MicroMesh:
+    """The micro-mesh with its bounds folded into the base and the directions, as
+    micromesh-tools writes its files: base P + D·bias, directions D·scale, each micro-vertex
+    the value t in [0, 1] of :func:`normalized_values`. Under bounds that differ from vertex
+    to vertex a file cannot say every position of ``mm`` exactly (the interpolated D·scale is
+    not parallel to the interpolated D); the baked micro-mesh is what a file holds, and
+    :func:`unit_bounds` express it exactly."""
+    t = normalized_values(mm, bounds)
+    base = mm.base.with_vertices(mm.base.vertices + mm.directions * bounds.bias[:, None])
+    return MicroMesh(base, mm.directions * bounds.scale[:, None], mm.levels, t, mm._topology)

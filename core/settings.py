@@ -73,6 +73,8 @@ class ConstructSettings:
     final_fit: bool = True           # fit the displacements to the reference at the end
                                      # (core.fit, least squares; ours)
     fit_smoothness: float = 1e-3     # weight of |L d|² in the fit
+    fold_bounds: bool = True         # fold the tight bounds into base and directions: the
+                                     # result is what a .bary file holds (core.bounds.baked)
 
     # losses
     w_render: float = 1.0

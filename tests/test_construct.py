@@ -72,7 +72,7 @@ def test_short_run_beats_staged_baseline(scene):
 def test_subdivision_keeps_surface(scene):
     ref, base = scene
     kw = dict(lr_base=1e-12, lr_disp=1e-12, compute_metrics=False, base_warm_up=False,
-              final_fit=False)
+              final_fit=False, fold_bounds=False)
     s = small(iterations=6, subdivide_at=(5,), max_level=1, init_new_levels="interpolate",
               w_sv=0, w_iso=0, **kw)
     before = construct(ref, base, None, small(iterations=5, subdivide_at=(), max_level=0, **kw))

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from core.bounds import tight_bounds
+from core.bounds import baked, tight_bounds, unit_bounds
 from core.io import bary as B
 from core.io.bary_values import decode_values, encode_values
 from core.io.micromesh_export import (ExportError, decoded_positions, stored_values,
@@ -212,3 +212,21 @@ def test_micromesh_tools_files_import(path):
     assert mm.topology.n_triangles == int(stats["micro_fn"])
     assert len(f.levels) == int(stats["base_fn"])
     assert mmt_formula_bytes(f.levels, len(f.positions)) == int(stats["out_size"])
+
+
+def test_a_baked_micromesh_is_what_its_file_holds(tmp_path, mm):
+    """Per-vertex bounds cannot say every position of a micro-mesh; folded into the base and
+    the directions (what constructions return) they can: float files exactly, 11-bit files up
+    to the rounding of the values."""
+    b = tight_bounds(mm)
+    assert write_micromesh(tmp_path / "a.gltf", mm, b, value_format="float").quantization_max \
+        > 1e-4
+    folded = baked(mm, b)
+    unit = unit_bounds(mm.base.n_vertices)
+    exact = write_micromesh(tmp_path / "b.gltf", folded, unit, value_format="float")
+    assert exact.quantization_max < 1e-6
+    back = read_micromesh(tmp_path / "b.gltf").micromesh().micro_vertex_positions()
+    np.testing.assert_allclose(back, folded.micro_vertex_positions(), atol=1e-6)
+    r11 = write_micromesh(tmp_path / "c.glb", folded, unit)
+    step = np.linalg.norm(folded.directions, axis=1).max() / 2047 / mm.base.bbox_diagonal
+    assert r11.quantization_max <= step

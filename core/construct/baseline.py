@@ -1,5 +1,5 @@
 """The staged baseline (Maggiordomo et al. 2023 style), the simplest alternative to the
-optimiser: the given base at given or uniform levels, area-weighted normals as directions,
+optimiser: the given base at given or uniform levels, ``direction_normals`` as directions,
 projection baking, tight bounds, no optimisation."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..bounds import tight_bounds
+from ..bounds import baked, tight_bounds, unit_bounds
 from ..losses import mean_edge_length
 from ..mesh import TriMesh, unit_sphere_normalization
 from ..metrics import PhaseTimer
@@ -24,11 +24,11 @@ def staged_baseline(reference: TriMesh, base: TriMesh | None, level,
                     settings: ConstructSettings | None = None,
                     evaluate_metrics: bool = True, progress: Callable | None = None,
                     should_stop: Callable[[], bool] | None = None) -> ConstructResult:
-    """``base`` at ``level`` (one int, or one per face), directions the area-weighted normals,
+    """``base`` at ``level`` (one int, or one per face), directions ``direction_normals``,
     displacements by projection baking (nearest of the two ray hits within two mean base edge
-    lengths, nearest-point fallback), tight bounds. ``base`` None: the settings' base is built
-    first, as :func:`core.construct.construct` does (``metrics["base"]``); ``metrics["warnings"]``
-    as there. ``progress``/``should_stop`` serve the base building."""
+    lengths, nearest-point fallback), tight bounds folded in (``core.bounds.baked``).
+    ``base`` None: the settings' base is built first, as :func:`core.construct.construct`
+    does (``metrics["base"]``); ``metrics["warnings"]`` as there. ``progress``/``should_stop`` serve the base building."""
     s = (settings or preset("default")).validate()
     if base is None:
         check_reference(reference)
@@ -49,6 +49,8 @@ def staged_baseline(reference: TriMesh, base: TriMesh | None, level,
         mm = MicroMesh.flat(base_u, levels)
         mm = mm.with_displacements(bake(mm, ref_u, 2.0 * h))
         bounds = tight_bounds(mm)
+        if s.fold_bounds:
+            mm, bounds = baked(mm, bounds), unit_bounds(mm.base.n_vertices)
     metrics = {}
     if evaluate_metrics:
         with timer.phase("metrics"):

@@ -1,12 +1,13 @@
 """The end of a construction: final levels, balance, the least-squares fit of the
-displacements (``core.fit``), tight bounds, metrics, and the result in the caller's frame."""
+displacements (``core.fit``), tight bounds folded into the base and the directions (what a
+file holds: ``core.bounds.baked``), metrics, and the result in the caller's frame."""
 from __future__ import annotations
 
 import time
 
 import numpy as np
 
-from ..bounds import tight_bounds
+from ..bounds import baked, tight_bounds, unit_bounds
 from ..mesh import TriMesh
 from ..microtopology import balance_levels
 from ..fit import fit_displacements
@@ -32,6 +33,8 @@ def finalise(run: RunState, params: Parameters, reference: TriMesh, base: TriMes
                                                          run.s.fit_smoothness))
     with run.timer.phase("finalize"):
         bounds = tight_bounds(mm)
+        if run.s.fold_bounds and run.fixed is None:  # what a file holds (not: a frozen base)
+            mm, bounds = baked(mm, bounds), unit_bounds(mm.base.n_vertices)
     run.check_stop()
     construct_time = time.perf_counter() - t_start
     metrics: dict = {}
