@@ -76,10 +76,10 @@ class MicroMesh:
     # ----------------------------------------------------------------- construction
     @classmethod
     def flat(cls, base: TriMesh, levels, directions: np.ndarray | None = None) -> "MicroMesh":
-        """Zero displacements; directions default to area-weighted vertex normals; the levels
+        """Zero displacements; directions default to ``base.direction_normals``; the levels
         are balanced first (raised where needed)."""
         lv = balance_levels(base, levels)
-        dirs = base.vertex_normals if directions is None else directions
+        dirs = base.direction_normals if directions is None else directions
         return cls(base, dirs, lv, np.zeros(count_micro_vertices(base, lv)))
 
     def with_displacements(self, displacements: np.ndarray) -> "MicroMesh":

@@ -53,7 +53,7 @@ def test_flat_defaults_and_positions():
     mesh = icosahedron()
     mm = MicroMesh.flat(mesh, np.r_[3, np.zeros(19, int)])
     assert (mm.levels == balance_levels(mesh, mm.levels)).all() and mm.levels.max() == 3
-    assert np.allclose(mm.directions, mesh.vertex_normals)
+    assert np.allclose(mm.directions, mesh.direction_normals)
     assert (mm.displacements == 0).all()
     assert np.allclose(mm.micro_vertex_positions(), mm.topology.interp @ mesh.vertices)
 

@@ -21,8 +21,9 @@ from .types import ConstructError
 
 
 def torch_vertex_normals(P: torch.Tensor, F: torch.Tensor) -> torch.Tensor:
-    """Area-weighted unit vertex normals (zero where undefined)."""
+    """``TriMesh.direction_normals`` in torch: the mean of the faces' unit normals."""
     fn = torch.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]], dim=1)
+    fn = fn / fn.norm(dim=1, keepdim=True).clamp_min(1e-30)
     n = torch.zeros_like(P)
     for k in range(3):
         n.index_add_(0, F[:, k], fn)
