@@ -3,11 +3,11 @@ NVlabs/micromesh-tools run with its defaults, both scored by the independent jud
 
 For each mesh of ../shared/meshes it runs ``python batch.py --input MESH --output DIR --ply``
 (plus the row's ``--set`` overrides, if any) in a subprocess, exactly as a user would, then
-``../shared/judge/judge.py`` on our tessellation and on micromesh-tools' output
-(``../shared/baselines/NAME/out_NAME.gltf``; judged once and cached). PSNR and geometric
-error are the judge's; shell volume (tight), storage (micromesh-tools' ``out_size`` formula),
-base isotropy and cracks are ours from the run's metrics for our row (the same definitions
-as the judge's) and the judge's for theirs. ``--staged`` adds our staged baseline
+``../shared/judge/judge.py`` on the micro-mesh file it wrote (``NAME.gltf`` + ``.bary``) and
+on micromesh-tools' (``../shared/baselines/NAME/out_NAME.gltf``; judged once and cached): PSNR,
+geometric error, shell volume (tight), storage (micromesh-tools' ``out_size`` formula), base
+isotropy and cracks are the judge's for both. ``file_vs_ply`` is the judge's PSNR of our file
+minus that of our float tessellation (``--ply``): what the 11-bit file loses. ``--staged`` adds our staged baseline
 (``--method projection``, level 3 uniform, on the same default base) as the simplest
 alternative.
 
@@ -71,14 +71,17 @@ def theirs(name: str, python: str, cache: Path) -> dict:
 def ours(name: str, label: str, python: str, out: Path, overrides: list[str],
          extra: list[str]) -> dict:
     m, wall = run_batch(MESHES / f"{name}.ply", out, overrides, extra)
-    j = judge(python, MESHES / f"{name}.ply", out / f"{name}_micromesh.ply",
-              out / f"judge_{name}.json")
+    j = judge(python, MESHES / f"{name}.ply", out / f"{name}.gltf", out / f"judge_{name}.json")
+    jp = judge(python, MESHES / f"{name}.ply", out / f"{name}_micromesh.ply",
+               out / f"judge_{name}_ply.json")
     base = m.get("base", {})
     topo_ok = base.get("topology_input") == base.get("topology_base") if base else None
-    return {"psnr": j["render"]["psnr_full"], "geom_err": j["geom_error"]["ref_to_mm"]["avg"],
-            "shell": m["shell_volume"], "bytes": m["bytes_mmt"], "iso_base": m["iso_base"],
-            "cracks": m["cracks"], "base_faces": m["base_faces"],
-            "micro_faces": m["micro_triangles"], "time_s": round(wall, 1),
+    return {"psnr": j["render"]["psnr_full"], "psnr_ply": jp["render"]["psnr_full"],
+            "geom_err": j["geom_error"]["ref_to_mm"]["avg"],
+            "shell": j["shell"]["shell_volume_tight"], "bytes": j["storage"]["mmt_formula_bytes"],
+            "iso_base": j["isotropy"]["iso_base"], "cracks": j["watertightness"]["crack_edges"],
+            "base_faces": j["counts"]["base_faces"], "micro_faces": j["counts"]["micro_faces_full"],
+            "micro_faces_ours": m["micro_triangles"], "time_s": round(wall, 1),
             "topology_kept": topo_ok, "warnings": m.get("warnings", []), "label": label}
 
 
@@ -112,6 +115,7 @@ def main() -> None:
         for kind, o in rows_here:
             rec = {"mesh": name, "row": o["label"], "dpsnr": round(o["psnr"] - t["psnr"], 2),
                    "psnr": round(o["psnr"], 2), "psnr_mmt": round(t["psnr"], 2),
+                   "file_vs_ply": round(o["psnr"] - o["psnr_ply"], 2),
                    "storage": round(o["bytes"] / t["bytes"], 3),
                    "shell": round(o["shell"] / t["shell"], 3),
                    "iso_base": round(o["iso_base"], 3), "iso_mmt": round(t["iso_base"], 3),
@@ -123,7 +127,7 @@ def main() -> None:
             records.append({**rec, "ours": o, "theirs": t})
             print(rec, flush=True)
             write_json(args.json, records)
-    cols = ["mesh", "row", "dpsnr", "psnr", "psnr_mmt", "storage", "shell", "iso_base", "iso_mmt",
+    cols = ["mesh", "row", "dpsnr", "psnr", "psnr_mmt", "file_vs_ply", "storage", "shell", "iso_base", "iso_mmt",
             "geom_err", "cracks", "topology", "base_f", "base_f_mmt", "time_s"]
     print_table(rows, cols, title="ours vs micromesh-tools (judge PSNR; storage, shell and "
                                   "geometric error as ours / theirs)")
