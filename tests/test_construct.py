@@ -269,3 +269,18 @@ def test_large_micro_laplacians_use_cg(scene, monkeypatch):
     scale = np.abs(a.micromesh.displacements).max()
     np.testing.assert_allclose(b.micromesh.displacements, a.micromesh.displacements,
                                atol=1e-3 * scale)
+
+
+def test_a_reference_with_faces_wound_both_ways_is_turned_and_said(scene):
+    """Half the reference's faces flipped: the construction turns them back (the caller's
+    mesh is not changed), says so, and gets the result of the clean reference."""
+    ref, base = scene
+    mask = np.random.default_rng(0).random(ref.n_faces) < 0.5
+    flipped = TriMesh(ref.vertices, np.where(mask[:, None], ref.faces[:, ::-1], ref.faces))
+    before = flipped.faces.copy()
+    clean = staged_baseline(ref, base, 2, small())
+    fixed = staged_baseline(flipped, base, 2, small())
+    np.testing.assert_array_equal(flipped.faces, before)
+    assert clean.metrics["warnings"] == []
+    assert any("wound in opposite directions" in w for w in fixed.metrics["warnings"])
+    assert abs(fixed.metrics["psnr"] - clean.metrics["psnr"]) < 0.05

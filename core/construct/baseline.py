@@ -15,7 +15,8 @@ from ..micromesh import MicroMesh
 from ..settings import ConstructSettings, preset
 from ..threads import set_threads
 from .evaluate import evaluate
-from .frame import check_inputs, check_reference, prepare_base, to_caller_frame
+from .frame import (check_inputs, check_reference, oriented_reference, prepare_base,
+                    to_caller_frame)
 from .scene import bake
 from .types import ConstructResult, Progress
 
@@ -35,7 +36,9 @@ def staged_baseline(reference: TriMesh, base: TriMesh | None, level,
     else:
         check_inputs(reference, base)
     set_threads(s.threads)
-    base, base_report, warnings = prepare_base(reference, base, s, progress, should_stop)
+    reference, warnings = oriented_reference(reference)
+    base, base_report, base_warnings = prepare_base(reference, base, s, progress, should_stop)
+    warnings += base_warnings
     if progress is not None:
         progress(Progress("bake", 1, 2, 0.0, float("nan"), 0.0))
     timer = PhaseTimer()

@@ -13,6 +13,7 @@ from ..cameras import Cameras, fibonacci_cameras
 from ..mesh import Normalization, TriMesh
 from ..micromesh import MicroMesh
 from ..microtopology import balance_levels
+from ..orient import orient
 from ..settings import ConstructSettings
 from .types import ConstructCancelled, ConstructError, Progress
 
@@ -34,6 +35,13 @@ def check_reference(reference: TriMesh) -> None:
     if not diag > 0 or not (area > 1e-12 * diag * diag).any():
         raise ConstructError(f"the input has no surface: all {reference.n_faces} faces are "
                              "degenerate (zero area)")
+
+
+def oriented_reference(reference: TriMesh) -> tuple[TriMesh, list[str]]:
+    """The reference with consistent winding, closed parts facing out (``core.orient``), and
+    what was turned, in words (the caller's mesh is not changed)."""
+    o = orient(reference)
+    return o.mesh, o.warnings()
 
 
 def check_inputs(reference: TriMesh, base: TriMesh) -> None:

@@ -26,7 +26,7 @@ from ..settings import ConstructSettings
 from ..threads import set_threads
 from .finalise import finalise
 from .frame import (check_inputs, check_reference, device as torch_device, fixed_levels,
-                    prepare_base, unit_cameras)
+                    oriented_reference, prepare_base, unit_cameras)
 from .params import Parameters
 from .scene import Scene, bake
 from .schedule import Schedule
@@ -44,8 +44,9 @@ def construct(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
     """Build a micro-mesh of ``reference`` on ``base`` (both in the caller's frame).
 
     ``base`` None: the settings' base (``core.base.base_for``) is built first (phase "base");
-    its report is ``metrics["base"]``. ``metrics["warnings"]`` lists, in words, how the base's
-    topology differs from the reference's and where the base builder stopped short.
+    its report is ``metrics["base"]``. The reference's winding is made consistent first
+    (``core.orient``). ``metrics["warnings"]`` lists, in words, which faces were turned, how the
+    base's topology differs from the reference's and where the base builder stopped short.
 
     ``cameras`` (caller's frame) or None for ``settings.n_views`` Fibonacci cameras. Raises
     :class:`ConstructCancelled` within one iteration of ``should_stop()`` returning True.
@@ -116,7 +117,9 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     # building included.
     warm_up(dev, antialias=s.antialias)
     t_start = time.perf_counter()
-    base, base_report, warnings = prepare_base(reference, base, s, progress, should_stop)
+    reference, warnings = oriented_reference(reference)
+    base, base_report, base_warnings = prepare_base(reference, base, s, progress, should_stop)
+    warnings += base_warnings
     fixed = fixed_levels(base, levels) if levels is not None else None
     torch.manual_seed(s.seed)
     rng = np.random.default_rng(s.seed)
