@@ -4,9 +4,10 @@ from __future__ import annotations
 import bpy
 from bpy.app.handlers import persistent
 
-from . import base_ops, construct_op, deps, files_op, job, misc_ops, props
+from . import base_ops, construct_op, deps, files_op, job, maps_op, misc_ops, props
 
-CLASSES = (*base_ops.CLASSES, *construct_op.CLASSES, *misc_ops.CLASSES, *files_op.CLASSES)
+CLASSES = (*base_ops.CLASSES, *construct_op.CLASSES, *misc_ops.CLASSES, *files_op.CLASSES,
+           *maps_op.CLASSES)
 
 
 @persistent

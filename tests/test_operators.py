@@ -366,3 +366,24 @@ def test_export_then_import_gives_the_same_micromesh(scene, tmp_path):
     bad.write_text("{not json")
     with pytest.raises(RuntimeError, match="not valid glTF"):
         bpy.ops.micromesh.import_file(filepath=str(bad))
+
+
+def test_bake_maps_rebuilds_the_micromesh_through_blender_modifiers(scene):
+    """Bake Maps makes <source>_maps: the base with UVs whose height modifier, evaluated by
+    Blender, puts the micro-vertices back where the micro-mesh has them."""
+    _make_base(scene)
+    assert bpy.ops.micromesh.construct(method="PROJECTION") == {"FINISHED"}
+    out = writeback.load_outcome(bpy.data.objects["rock_micromesh"])
+    assert bpy.ops.micromesh.bake_maps(resolution=512) == {"FINISHED"}
+    obj = bpy.data.objects["rock_maps"]
+    assert obj.data.uv_layers.get("UVMap") is not None and obj.data.materials[0] is not None
+    assert bpy.data.images["rock_maps_height"].packed_file is not None
+    ev = bl_mesh.mesh_to_arrays(obj)            # the modifier, evaluated
+    mm = out.micromesh
+    # Blender subdivides a triangle into 3 quads, then each quad into 4
+    assert ev.n_faces == mm.base.n_faces * 3 * 4 ** (int(mm.levels.max()) - 1) * 2
+    from micromesh.core.bake import nearest_points
+
+    _, _, d = nearest_points(ev.vertices, mm.tessellate().to_trimesh())
+    rms = np.sqrt((d ** 2).mean()) / mm.base.bbox_diagonal
+    assert rms < 2e-3, rms

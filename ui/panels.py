@@ -152,6 +152,7 @@ class MICROMESH_PT_export(_Panel, bpy.types.Panel):
         if _result_object(context) is None:
             layout.label(text="Construct a micro-mesh first")
         layout.operator("micromesh.export", icon="EXPORT")
+        layout.operator("micromesh.bake_maps", icon="TEXTURE")
         layout.operator("micromesh.import_file", icon="IMPORT")
         layout.label(text="The .blend also keeps the micro-mesh", icon="INFO")
 

@@ -1,0 +1,116 @@
+"""A UV atlas on the base mesh (xatlas) and which base face and barycentrics each texel sees.
+
+Args/Returns in the texture's pixel grid: row y counts from the bottom (v = (y + 0.5) / H, as
+in Blender and OpenGL), column x from the left (u = (x + 0.5) / W).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..mesh import TriMesh
+
+
+class AtlasError(ValueError):
+    """A base mesh that cannot be unwrapped."""
+
+
+@dataclass(eq=False)
+class Atlas:
+    """UVs of the base mesh: ``uv`` (m, 2) per atlas vertex, ``faces`` (nf, 3) into it (same
+    face order as the base), ``vertex`` (m,) the base vertex each atlas vertex copies (seams
+    split vertices)."""
+
+    uv: np.ndarray
+    faces: np.ndarray
+    vertex: np.ndarray
+
+    @property
+    def corner_uv(self) -> np.ndarray:
+        """(nf, 3, 2) the UVs of each face's corners."""
+        return self.uv[self.faces]
+
+
+def uv_atlas(base: TriMesh, resolution: int, padding: int = 4) -> Atlas:
+    """Charts cut and packed by xatlas for a ``resolution``² texture with ``padding`` texels
+    between charts (room for the bleed that keeps filtering off the seams)."""
+    import xatlas
+
+    if base.n_faces == 0:
+        raise AtlasError("the base mesh has no faces")
+    atlas = xatlas.Atlas()
+    atlas.add_mesh(base.vertices.astype(np.float32), base.faces.astype(np.uint32))
+    pack = xatlas.PackOptions()
+    pack.resolution, pack.padding, pack.bilinear = int(resolution), int(padding), True
+    atlas.generate(xatlas.ChartOptions(), pack)
+    vmap, faces, uv = atlas[0]
+    if faces.shape != base.faces.shape:
+        raise AtlasError(f"xatlas returned {len(faces)} faces for {base.n_faces}")
+    return Atlas(np.asarray(uv, np.float64), np.asarray(faces, np.int64),
+                 np.asarray(vmap, np.int64))
+
+
+def texel_faces(atlas: Atlas, width: int, height: int, chunk: int = 1 << 22
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """(face (H, W) int64, -1 where no face; bary (H, W, 3) float64): the base face whose UV
+    triangle holds each texel centre and the texel's (w, u, v) barycentrics in it."""
+    face = np.full((height, width), -1, np.int64)
+    bary = np.zeros((height, width, 3))
+    c = atlas.corner_uv * np.array([width, height]) - 0.5          # texel-centre coordinates
+    lo = np.clip(np.floor(c.min(1)).astype(np.int64), 0, [width - 1, height - 1])
+    hi = np.clip(np.ceil(c.max(1)).astype(np.int64), 0, [width - 1, height - 1])
+    area = (hi - lo + 1).prod(1)
+    order = np.arange(len(c))
+    start = 0
+    while start < len(order):
+        stop = start + max(1, int(np.searchsorted(np.cumsum(area[start:]), chunk)))
+        _raster(c[start:stop], lo[start:stop], hi[start:stop], area[start:stop],
+                np.arange(start, min(stop, len(c))), face, bary)
+        start = stop
+    return face, bary
+
+
+def _raster(c, lo, hi, area, fid, face, bary) -> None:
+    n = area.sum()
+    owner = np.repeat(np.arange(len(c)), area)
+    k = np.arange(n) - np.repeat(np.cumsum(area) - area, area)
+    wbox = (hi - lo + 1)[:, 0]
+    x = lo[owner, 0] + k % wbox[owner]
+    y = lo[owner, 1] + k // wbox[owner]
+    a, b, d = c[owner, 0], c[owner, 1], c[owner, 2]
+    e1, e2 = b - a, d - a
+    px, py = x - a[:, 0], y - a[:, 1]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    ok = np.abs(det) > 1e-12
+    det = np.where(ok, det, 1.0)
+    u = (px * e2[:, 1] - py * e2[:, 0]) / det
+    v = (e1[:, 0] * py - e1[:, 1] * px) / det
+    w = 1.0 - u - v
+    tol = -1e-9
+    inside = ok & (u >= tol) & (v >= tol) & (w >= tol)
+    x, y = x[inside], y[inside]
+    face[y, x] = fid[owner[inside]]
+    bary[y, x] = np.stack([w[inside], u[inside], v[inside]], 1)
+
+
+def dilate(image: np.ndarray, filled: np.ndarray, texels: int) -> np.ndarray:
+    """``image`` (H, W[, C]) with the unfilled texels within ``texels`` of a filled one set to
+    the mean of their filled neighbours, ring by ring (padding across seams)."""
+    img = image.copy()
+    done = filled.copy()
+    for _ in range(texels):
+        acc = np.zeros_like(img, dtype=np.float64)
+        cnt = np.zeros(done.shape)
+        for dy, dx in ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (1, -1), (-1, 1), (-1, -1)):
+            m = np.roll(done, (dy, dx), axis=(0, 1))
+            v = np.roll(img, (dy, dx), axis=(0, 1))
+            acc += v * (m[..., None] if img.ndim == 3 else m)
+            cnt += m
+        grow = ~done & (cnt > 0)
+        if not grow.any():
+            break
+        c = cnt[grow][:, None] if img.ndim == 3 else cnt[grow]
+        img[grow] = acc[grow] / c
+        done = done | grow
+    return img

@@ -1,0 +1,133 @@
+"""Height and normal maps of a micro-mesh on a UV atlas of its base: what most renderers and
+engines can display today (a base mesh with UVs, a height map, a normal map).
+
+Height at a surface point of the base: the signed distance ``h`` such that P + n·h is the
+micro-surface point at the same barycentrics, measured along ``n = normalize(lerp(U))`` with
+``U`` the unit vertex directions (``unit_directions``; exported as the base's normals, so a
+renderer that displaces along interpolated vertex normals rebuilds the micro-mesh). The
+normal map holds the micro-triangles' normals in the tangent space of the base (tangent along
++u of the face's UVs, orthogonalised against n; bitangent n × tangent, flipped where the UVs
+are mirrored), encoded as RGB = (n + 1) / 2.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ..micromesh import MicroMesh
+from .atlas import Atlas, dilate, texel_faces, uv_atlas
+
+
+@dataclass(eq=False)
+class Maps:
+    """The atlas and the maps, all (H, W[, C]) with row 0 at the bottom (v = 0)."""
+
+    atlas: Atlas
+    height: np.ndarray   # float32, world units
+    normal: np.ndarray   # float32 in [0, 1], tangent space encoded
+    filled: np.ndarray   # bool: texels inside a chart (the others are padding or empty)
+
+
+def unit_directions(mm: MicroMesh) -> np.ndarray:
+    """(nv, 3) the unit direction at each base vertex (the maps' vertex normals)."""
+    d = mm.directions
+    n = np.linalg.norm(d, axis=1, keepdims=True)
+    return np.where(n > 0, d / np.maximum(n, 1e-300), mm.base.vertex_normals)
+
+
+class MapsCancelled(RuntimeError):
+    """``should_stop()`` turned true: no maps."""
+
+
+def bake_maps(mm: MicroMesh, resolution: int = 2048, padding: int = 4,
+              atlas: Atlas | None = None, chunk: int = 1 << 20,
+              progress: Callable[[dict], None] = lambda p: None,
+              should_stop: Callable[[], bool] = lambda: False) -> Maps:
+    """Height and normal maps of ``mm`` at ``resolution``² on ``atlas`` (default: a new
+    :func:`uv_atlas`), bled ``padding`` texels past the charts. ``progress`` gets
+    ``{"phase": "maps", "iteration", "total"}``; :class:`MapsCancelled` once ``should_stop()``."""
+    if not 16 <= int(resolution) <= 16384:
+        raise ValueError(f"map resolution must be within 16..16384, got {resolution}")
+    progress({"phase": "maps", "iteration": 0, "total": 1})
+    atlas = atlas if atlas is not None else uv_atlas(mm.base, resolution, padding)
+    face, bary = texel_faces(atlas, resolution, resolution)
+    filled = face >= 0
+    ys, xs = np.nonzero(filled)
+    height = np.zeros(filled.shape)
+    normal = np.zeros(filled.shape + (3,))
+    normal[..., 2] = 1.0
+    X = mm.micro_vertex_positions()
+    U = unit_directions(mm)
+    tangent, sign = _face_tangents(mm, atlas)
+    steps = range(0, len(ys), chunk)
+    for i, s in enumerate(steps):
+        if should_stop():
+            raise MapsCancelled("map baking cancelled")
+        progress({"phase": "maps", "iteration": i, "total": len(steps) + 1})
+        y, x = ys[s:s + chunk], xs[s:s + chunk]
+        f, b = face[y, x], bary[y, x]
+        idx, w = mm.locate(f, b)
+        corners = X[idx]                                           # (q, 3, 3)
+        point = np.einsum("qk,qkc->qc", w, corners)
+        tri = mm.base.faces[f]
+        P = np.einsum("qk,qkc->qc", b, mm.base.vertices[tri])
+        n = _unit(np.einsum("qk,qkc->qc", b, U[tri]))
+        height[y, x] = ((point - P) * n).sum(1)
+        m = _unit(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
+        t = _unit(tangent[f] - n * (tangent[f] * n).sum(1, keepdims=True))
+        bt = np.cross(n, t) * sign[f][:, None]
+        normal[y, x] = np.stack([(m * t).sum(1), (m * bt).sum(1), (m * n).sum(1)], 1)
+    height = dilate(height, filled, padding)
+    normal = dilate(normal, filled, padding)
+    return Maps(atlas, height.astype(np.float32), ((normal + 1.0) * 0.5).astype(np.float32),
+                filled)
+
+
+def sample(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear lookup of ``image`` (H, W[, C], row 0 at v = 0) at ``uv`` (q, 2), as a GPU
+    samples a texture (clamped at the borders)."""
+    h, w = image.shape[:2]
+    x = np.clip(uv[:, 0] * w - 0.5, 0, w - 1)
+    y = np.clip(uv[:, 1] * h - 0.5, 0, h - 1)
+    x0, y0 = np.minimum(x.astype(np.int64), w - 2), np.minimum(y.astype(np.int64), h - 2)
+    fx, fy = x - x0, y - y0
+    if image.ndim == 3:
+        fx, fy = fx[:, None], fy[:, None]
+    top = image[y0, x0] * (1 - fx) + image[y0, x0 + 1] * fx
+    bot = image[y0 + 1, x0] * (1 - fx) + image[y0 + 1, x0 + 1] * fx
+    return top * (1 - fy) + bot * fy
+
+
+def rebuilt_positions(mm: MicroMesh, maps: Maps) -> np.ndarray:
+    """(n, 3) the micro-vertices as a renderer rebuilds them from the base and the height map:
+    P + n·h(uv), at the same barycentrics (each micro-vertex seen from one face holding it)."""
+    t = mm.topology
+    f, b = t.vertex_face, t.vertex_bary
+    used = f >= 0
+    out = mm.micro_vertex_positions().copy()
+    f, b = f[used], b[used]
+    tri = mm.base.faces[f]
+    P = np.einsum("qk,qkc->qc", b, mm.base.vertices[tri])
+    n = _unit(np.einsum("qk,qkc->qc", b, unit_directions(mm)[tri]))
+    uv = np.einsum("qk,qkc->qc", b, maps.atlas.corner_uv[f])
+    out[used] = P + n * sample(maps.height.astype(np.float64), uv)[:, None]
+    return out
+
+
+def _face_tangents(mm: MicroMesh, atlas: Atlas) -> tuple[np.ndarray, np.ndarray]:
+    """Per face the direction of +u in 3D and ±1 (mirrored UVs: -1)."""
+    V = mm.base.vertices[mm.base.faces]
+    T = atlas.corner_uv
+    e1, e2 = V[:, 1] - V[:, 0], V[:, 2] - V[:, 0]
+    d1, d2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
+    det = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
+    r = np.where(np.abs(det) > 1e-20, 1.0 / np.where(det == 0, 1, det), 0.0)
+    tangent = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * r[:, None]
+    return tangent, np.where(det < 0, -1.0, 1.0)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=1, keepdims=True)
+    return v / np.maximum(n, 1e-300)

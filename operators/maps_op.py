@@ -1,0 +1,200 @@
+"""Bake Maps: height and normal maps of a result on a UV atlas of its base (``core.maps``), and
+``<source>_maps``: the base with those UVs and a Geometry Nodes modifier that subdivides it and
+displaces it by the height map along its interpolated directions, so Cycles and EEVEE render
+the micro-detail from a texture. Images are packed into the ``.blend`` (``batch.py --maps``
+also writes them as files)."""
+from __future__ import annotations
+
+import os
+import tempfile
+
+import bpy
+import numpy as np
+from bpy.props import IntProperty
+
+from ..core.maps import Maps, bake_maps, unit_directions
+from ..core.micromesh import MicroMesh
+from . import bl_mesh, job, writeback
+from .files_op import result_object
+
+GROUP = "MicroMesh Height Map"
+MODIFIER = "MicroMesh Height"
+
+
+def image(name: str, pixels: np.ndarray, path: str | None = None) -> bpy.types.Image:
+    """A float OpenEXR image (replacing one of that name) from (H, W) or (H, W, 3) values, row
+    0 at the bottom, non-colour data: written to ``path`` when given, else packed into the
+    ``.blend`` (written to a temporary file and read back: Blender packs files, not buffers)."""
+    old = bpy.data.images.get(name)
+    if old is not None:
+        bpy.data.images.remove(old)
+    h, w = pixels.shape[:2]
+    img = bpy.data.images.new(name, w, h, alpha=False, float_buffer=True)
+    img.colorspace_settings.name = "Non-Color"   # first: a change regenerates the pixels
+    rgba = np.ones((h, w, 4), np.float32)
+    rgba[..., :3] = pixels[..., None] if pixels.ndim == 2 else pixels
+    img.pixels.foreach_set(rgba.reshape(-1))
+    with tempfile.TemporaryDirectory() as tmp:
+        target = path or os.path.join(tmp, f"{name}.exr")
+        img.filepath_raw, img.file_format = target, "OPEN_EXR"
+        img.use_half_precision = False
+        img.save()
+        bpy.data.images.remove(img)
+        img = bpy.data.images.load(target)
+        img.name = name
+        img.colorspace_settings.name = "Non-Color"
+        if path is None:
+            img.pack()
+            img.filepath_raw = f"//{name}.exr"
+    return img
+
+
+def maps_object(context, source, mm: MicroMesh, maps: Maps, name: str) -> bpy.types.Object:
+    """``name``: the base split at the atlas' seams, with UVs, unit directions, the height
+    modifier (level: the result's finest) and a material holding the normal map."""
+    at = maps.atlas
+    mesh = bl_mesh.arrays_to_mesh(name, mm.base.vertices[at.vertex], at.faces)
+    uv = mesh.uv_layers.new(name="UVMap")
+    uv.data.foreach_set("uv", at.corner_uv.reshape(-1).astype(np.float32))
+    a = mesh.attributes.new("micromesh_unit_direction", "FLOAT_VECTOR", "POINT")
+    a.data.foreach_set("vector", unit_directions(mm)[at.vertex].astype(np.float32).reshape(-1))
+    obj, _ = bl_mesh.object_with_mesh(context, name, mesh, source,
+                                      reuse=lambda o: o.modifiers.get(MODIFIER) is not None)
+    height = image(f"{name}_height", maps.height)
+    normal = image(f"{name}_normal", maps.normal)
+    mod = obj.modifiers.get(MODIFIER) or obj.modifiers.new(MODIFIER, "NODES")
+    mod.node_group = _group(f"{GROUP} {name}", height)
+    mod[_input(mod.node_group, "Level")] = int(mm.levels.max(initial=0))
+    obj.data.materials.clear()
+    obj.data.materials.append(_material(f"{name}_material", normal))
+    return obj
+
+
+def _input(ng, name: str) -> str:
+    return next(i.identifier for i in ng.interface.items_tree
+                if getattr(i, "in_out", "") == "INPUT" and i.name == name)
+
+
+def _group(name: str, height: bpy.types.Image) -> bpy.types.NodeTree:
+    """Subdivide (simple) → position += normalize(direction) · height(UV) · Strength."""
+    ng = bpy.data.node_groups.get(name) or bpy.data.node_groups.new(name, "GeometryNodeTree")
+    ng.nodes.clear()
+    ng.interface.clear()
+    ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    lv = ng.interface.new_socket("Level", in_out="INPUT", socket_type="NodeSocketInt")
+    lv.default_value, lv.min_value, lv.max_value = 3, 0, 6
+    st = ng.interface.new_socket("Strength", in_out="INPUT", socket_type="NodeSocketFloat")
+    st.default_value = 1.0
+    ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    n, link = ng.nodes, ng.links.new
+    gin, gout = n.new("NodeGroupInput"), n.new("NodeGroupOutput")
+    sub = n.new("GeometryNodeSubdivideMesh")
+    uv = n.new("GeometryNodeInputNamedAttribute")
+    uv.data_type, uv.inputs["Name"].default_value = "FLOAT_VECTOR", "UVMap"
+    tex = n.new("GeometryNodeImageTexture")
+    tex.interpolation, tex.extension = "Linear", "EXTEND"
+    tex.inputs["Image"].default_value = height
+    sep = n.new("FunctionNodeSeparateColor")
+    d = n.new("GeometryNodeInputNamedAttribute")
+    d.data_type, d.inputs["Name"].default_value = "FLOAT_VECTOR", "micromesh_unit_direction"
+    unit = n.new("ShaderNodeVectorMath")
+    unit.operation = "NORMALIZE"
+    mul = n.new("ShaderNodeMath")
+    mul.operation = "MULTIPLY"
+    scale = n.new("ShaderNodeVectorMath")
+    scale.operation = "SCALE"
+    setpos = n.new("GeometryNodeSetPosition")
+    link(gin.outputs["Geometry"], sub.inputs["Mesh"])
+    link(gin.outputs["Level"], sub.inputs["Level"])
+    link(uv.outputs["Attribute"], tex.inputs["Vector"])
+    link(tex.outputs["Color"], sep.inputs["Color"])
+    link(sep.outputs[0], mul.inputs[0])
+    link(gin.outputs["Strength"], mul.inputs[1])
+    link(d.outputs["Attribute"], unit.inputs[0])
+    link(unit.outputs["Vector"], scale.inputs[0])
+    link(mul.outputs[0], scale.inputs["Scale"])
+    link(sub.outputs["Mesh"], setpos.inputs["Geometry"])
+    link(scale.outputs["Vector"], setpos.inputs["Offset"])
+    link(setpos.outputs["Geometry"], gout.inputs["Geometry"])
+    return ng
+
+
+def _material(name: str, normal: bpy.types.Image) -> bpy.types.Material:
+    """Principled BSDF, and the normal map ready beside it: connect it to the BSDF's Normal for
+    low subdivision levels or for an engine (on the fully subdivided mesh the geometry already
+    carries the detail, and the map would tilt it twice)."""
+    mat = bpy.data.materials.get(name) or bpy.data.materials.new(name)
+    mat.use_nodes = True
+    nodes = mat.node_tree.nodes
+    for node in [x for x in nodes if x.type in ("TEX_IMAGE", "NORMAL_MAP")]:
+        nodes.remove(node)
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image, tex.label = normal, "Micro-mesh normal map"
+    nmap = nodes.new("ShaderNodeNormalMap")
+    nmap.uv_map = "UVMap"
+    mat.node_tree.links.new(tex.outputs["Color"], nmap.inputs["Color"])
+    return mat
+
+
+class MICROMESH_OT_bake_maps(bpy.types.Operator):
+    """Bake height and normal maps of the micro-mesh on a UV atlas of its base, and make an
+    object that renders the detail from them (Cycles and EEVEE)"""
+    bl_idname = "micromesh.bake_maps"
+    bl_label = "Bake Maps"
+    bl_options = {"REGISTER", "UNDO"}
+    resolution: IntProperty(name="Resolution", default=2048, min=64, max=8192)
+
+    @classmethod
+    def poll(cls, context):
+        return result_object(context) is not None and job.active_job() is None
+
+    def _work(self, context):
+        res = result_object(context)
+        out = writeback.load_outcome(res)
+        self._result, self._mm = res, out.micromesh
+        return lambda progress, stop: bake_maps(out.micromesh, self.resolution,
+                                                progress=progress, should_stop=stop)
+
+    def _finish(self, context, maps: Maps):
+        src = self._result.micromesh_source or self._result
+        name = f"{src.name}_maps"
+        obj = maps_object(context, src, self._mm, maps, name)
+        self.report({"INFO"}, f"{obj.name}: {self.resolution}² height and normal maps")
+        return {"FINISHED"}
+
+    def execute(self, context):
+        work = self._work(context)
+        return self._finish(context, work(lambda p: None, lambda: False))
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        try:
+            self._job = job.Job(self._work(context)).start()
+        except job.JobBusy as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        self._timer = context.window_manager.event_timer_add(0.2, window=context.window)
+        context.window_manager.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC" and event.value == "PRESS":
+            self._job.cancel()
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        state = self._job.poll()
+        context.workspace.status_text_set(state.status_text())
+        if not state.done:
+            return {"PASS_THROUGH"}
+        context.window_manager.event_timer_remove(self._timer)
+        context.workspace.status_text_set(None)
+        if state.cancelled or state.error:
+            self.report({"WARNING"} if state.cancelled else {"ERROR"},
+                        "Baking cancelled; nothing was changed" if state.cancelled
+                        else state.error)
+            return {"CANCELLED"}
+        return self._finish(context, state.result)
+
+
+CLASSES = (MICROMESH_OT_bake_maps,)

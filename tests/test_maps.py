@@ -1,0 +1,79 @@
+"""Height and normal maps on a UV atlas of the base (core.maps)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from core.maps import bake_maps, dilate, rebuilt_positions, texel_faces, uv_atlas
+from core.mesh import TriMesh
+from core.micromesh import MicroMesh
+from core.primitives import icosphere
+
+
+@pytest.fixture(scope="module")
+def bumpy() -> MicroMesh:
+    base = TriMesh(*icosphere(2))
+    mm = MicroMesh.flat(base, np.full(base.n_faces, 3))
+    p = mm.micro_vertex_base_positions()
+    return mm.with_displacements(0.04 * np.sin(6 * p[:, 0]) * np.cos(5 * p[:, 2]))
+
+
+def test_texels_know_their_face_and_barycentrics(bumpy):
+    atlas = uv_atlas(bumpy.base, 256)
+    face, bary = texel_faces(atlas, 256, 256)
+    filled = face >= 0
+    assert 0.3 < filled.mean() < 0.95
+    b = bary[filled]
+    assert np.allclose(b.sum(1), 1) and (b > -1e-6).all()
+    ys, xs = np.nonzero(filled)
+    uv = np.einsum("qk,qkc->qc", b, atlas.corner_uv[face[filled]])
+    np.testing.assert_allclose(uv, np.stack([(xs + 0.5) / 256, (ys + 0.5) / 256], 1), atol=1e-9)
+    assert atlas.vertex.max() < bumpy.base.n_vertices and len(atlas.faces) == bumpy.base.n_faces
+
+
+def test_flat_micromesh_gives_zero_height_and_straight_up_normals():
+    base = TriMesh(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.0]]),
+                   np.array([[0, 1, 2], [0, 2, 3]]))
+    maps = bake_maps(MicroMesh.flat(base, [2, 2]), 128)
+    assert np.abs(maps.height).max() < 1e-9
+    n = maps.normal[maps.filled] * 2 - 1
+    np.testing.assert_allclose(n, np.tile([0, 0, 1.0], (len(n), 1)), atol=1e-6)
+    # a coarse sphere: the facets lean away from the interpolated normals, as they should
+    sphere = TriMesh(*icosphere(1))
+    facets = bake_maps(MicroMesh.flat(sphere, np.full(sphere.n_faces, 1)), 128)
+    assert np.abs(facets.height).max() < 1e-9
+    assert (facets.normal[facets.filled][:, 2] * 2 - 1 < 0.999).any()
+
+
+def test_height_map_rebuilds_the_micromesh_better_with_resolution(bumpy):
+    X = bumpy.micro_vertex_positions()
+    errs = []
+    for res in (128, 512):
+        maps = bake_maps(bumpy, res)
+        d = np.linalg.norm(rebuilt_positions(bumpy, maps) - X, axis=1)
+        errs.append(np.sqrt((d ** 2).mean()) / bumpy.base.bbox_diagonal)
+    assert errs[1] < errs[0] / 2 and errs[1] < 2e-3, errs
+
+
+def test_normals_tilt_the_way_the_surface_does():
+    # one flat triangle in the xy plane with UVs = xy, displaced so the surface rises along +x:
+    # the tangent-space normal leans towards -u
+    base = TriMesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]]), np.array([[0, 1, 2]]))
+    mm = MicroMesh.flat(base, [2])
+    mm = mm.with_displacements(0.3 * mm.micro_vertex_base_positions()[:, 0])
+    maps = bake_maps(mm, 64, padding=0)
+    n = maps.normal[maps.filled] * 2 - 1
+    sign = 1 if np.linalg.det(np.c_[maps.atlas.corner_uv[0][1:] - maps.atlas.corner_uv[0][0]]) \
+        > 0 else -1
+    expect = np.array([-0.3, 0.0, 1.0]) / np.hypot(0.3, 1.0)
+    # the atlas may rotate the chart: compare the tilt's size and the z component
+    assert np.allclose(n[:, 2], expect[2], atol=1e-6)
+    assert np.allclose(np.hypot(n[:, 0], n[:, 1]), -expect[0], atol=1e-6) and sign in (1, -1)
+
+
+def test_dilate_fills_rings_around_the_charts():
+    img = np.zeros((9, 9))
+    filled = np.zeros((9, 9), bool)
+    img[4, 4], filled[4, 4] = 5.0, True
+    out = dilate(img, filled, 2)
+    assert out[2:7, 2:7].min() == 5.0 and out[0, 0] == 0.0
