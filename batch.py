@@ -5,9 +5,11 @@ icosphere displaced by Blender's procedural textures, made at run time), decimat
 (``core.base``: topology kept, error and triangle shape bounded) and turned into a micro-mesh
 within a storage budget. With ``--input`` (one file or a folder of .ply / .obj / .glb / .gltf /
 .fbx / .blend; a micro-mesh glTF is read as its tessellation) it does the same per input: the
-same workflow as the add-on's panel (``operators.pipeline``). Per input NAME it writes ``NAME.blend`` (holding ``NAME_micromesh``
-and ``NAME_base``), the micro-mesh for other tools (``NAME.gltf`` + ``.bin`` + ``.bary``; or
-``--export glb``), ``NAME.metrics.json`` and with ``--ply`` ``NAME_micromesh.ply``: NAME is the
+same workflow as the add-on's panel (``operators.pipeline``). Per input NAME it writes
+``NAME.blend`` (holding ``NAME_micromesh`` and ``NAME_base``), the micro-mesh for other tools
+(``NAME.gltf`` + ``.bin`` + ``.bary``; or ``--export glb``), with ``--maps RES`` height and
+normal maps (``NAME_maps`` in the .blend, ``NAME_height.exr``, ``NAME_normal.png``,
+``NAME_base.gltf``), ``NAME.metrics.json`` and with ``--ply`` ``NAME_micromesh.ply``: NAME is the
 input's stem (``stem_ext`` where two inputs share one), the files appear together when the input
 is done (the metrics file last), and existing results are kept unless ``--force``.
 """
@@ -119,6 +121,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help="stored values: 11-bit packed (default) or 32-bit float")
     p.add_argument("--layout", choices=("bird", "umajor"), default="bird",
                    help="micro-vertex order: bird curve (default, the hardware's) or u-major")
+    p.add_argument("--maps", type=int, default=0, metavar="RES",
+                   help="also bake RES x RES height and normal maps: NAME_maps in the .blend, "
+                        "NAME_height.exr, NAME_normal.png and NAME_base.gltf (UVs, normal map)")
     p.add_argument("--ply", action="store_true", help="also write NAME_micromesh.ply")
     p.add_argument("--force", action="store_true", help="replace results that already exist")
     p.add_argument("--threads", type=int, default=0, help="CPU threads (0: all usable cores)")
@@ -243,6 +248,8 @@ def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict
     base = outcome.micromesh.base
     base_obj = base_ops.link_base(bpy.context, source, base.vertices, base.faces)
     obj = writeback.write_result(bpy.context, source, base_obj, outcome)
+    if args.maps:
+        m["maps"] = bake_maps(bpy, outcome, source, args, out, progress)
     m["total_time_s"] = time.perf_counter() - t0
     bpy.ops.wm.save_as_mainfile(filepath=str(out.temp(".blend")), compress=True)
     if args.export != "none":
@@ -265,7 +272,33 @@ def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict
 
 
 def export_suffixes(args: argparse.Namespace) -> list[str]:
-    return {"gltf": [".gltf", ".bin", ".bary"], "glb": [".glb"], "none": []}[args.export]
+    maps = ["_height.exr", "_normal.png", "_base.gltf", "_base.bin"] if args.maps else []
+    return {"gltf": [".gltf", ".bin", ".bary"], "glb": [".glb"], "none": []}[args.export] + maps
+
+
+def bake_maps(bpy, outcome, source, args, out, progress) -> dict:
+    """Height and normal maps: ``NAME_maps`` in the scene (images packed) and, for engines, the
+    EXR height map, the 16-bit PNG normal map and the base as glTF with UVs and normals."""
+    import numpy as np
+    from micromesh.core.io.maps_files import base_gltf, png16
+    from micromesh.core.maps import bake_maps as bake, rebuilt_positions
+    from micromesh.operators import maps_op
+    from micromesh.operators.sources import export_y_up
+
+    mm, name = outcome.micromesh, out.name
+    t = time.perf_counter()
+    maps = bake(mm, args.maps, progress=progress)
+    maps_op.maps_object(bpy.context, source, mm, maps, f"{source.name}_maps")
+    img = maps_op.image(f"{name}_height_file", maps.height, path=str(out.temp("_height.exr")))
+    bpy.data.images.remove(img)
+    out.temp("_normal.png").write_bytes(png16(maps.normal))
+    for path, data in base_gltf(out.final("_base.gltf"), mm, maps, f"{name}_normal.png",
+                                f"{name}_height.exr", y_up=export_y_up(source)):
+        out.temp(path.name[len(name):]).write_bytes(data)
+    err = np.linalg.norm(rebuilt_positions(mm, maps) - mm.micro_vertex_positions(), axis=1)
+    return {"resolution": args.maps, "time_s": time.perf_counter() - t,
+            "rebuild_rms": float(np.sqrt((err ** 2).mean()) / mm.base.bbox_diagonal),
+            "rebuild_max": float(err.max(initial=0.0) / mm.base.bbox_diagonal)}
 
 
 def export(outcome, source, args, out) -> dict:
@@ -326,6 +359,8 @@ def check_usage(args: argparse.Namespace):
                          "and --set max_level=N)")
     if args.threads < 0:
         raise BatchError("--threads must be >= 0 (0: all usable cores)")
+    if args.maps and not 64 <= args.maps <= 16384:
+        raise BatchError("--maps must be a resolution within 64..16384 (0: no maps)")
     out_dir = Path(args.output)
     names = output_names(inputs) if inputs else [DEMO_NAME]
     suffixes = [".blend"] + export_suffixes(args) + (["_micromesh.ply"] if args.ply else []) \

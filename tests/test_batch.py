@@ -258,3 +258,34 @@ def test_bad_geometry_is_refused_not_repaired(tmp_path, body, reason):
     lines = _error_lines(r.stderr)
     assert len(lines) == 1 and reason in lines[0], r.stderr
     assert "Traceback" not in r.stderr and not list((tmp_path / "out").iterdir())
+
+
+def test_maps_for_engines(inputs, tmp_path):
+    """--maps: the maps object in the .blend, the EXR height map, the 16-bit PNG normal map and
+    the base as glTF with UVs and the normal map, all in the result's set."""
+    out = tmp_path / "out"
+    r = run_batch("--input", inputs / "ball.ply", "--output", out, *QUICK, "--maps", "128",
+                  "--export", "none")
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ["ball.blend", "ball_height.exr", "ball_normal.png", "ball_base.gltf", "ball_base.bin",
+         "ball.metrics.json"])
+    m = json.loads((out / "ball.metrics.json").read_text())["metrics"]
+    assert m["maps"]["resolution"] == 128 and 0 < m["maps"]["rebuild_rms"] < 0.01
+    png = (out / "ball_normal.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and png[16:26] == bytes.fromhex("00000080000000801002")
+    assert (out / "ball_height.exr").read_bytes()[:4] == b"\x76\x2f\x31\x01"   # OpenEXR magic
+    from micromesh_path import ensure_package
+
+    ensure_package()
+    from micromesh.core.io.gltf import Document
+
+    doc = Document(out / "ball_base.gltf")
+    prim = doc.doc["meshes"][0]["primitives"][0]
+    uv = doc.accessor(prim["attributes"]["TEXCOORD_0"])
+    assert uv.min() >= 0 and uv.max() <= 1 and len(uv) == len(doc.accessor(prim["attributes"]
+                                                                          ["POSITION"]))
+    assert doc.doc["images"][0]["uri"] == "ball_normal.png"
+    bpy.ops.wm.open_mainfile(filepath=str(out / "ball.blend"))
+    assert bpy.data.objects["ball_maps"].modifiers.get("MicroMesh Height") is not None
+    bpy.ops.wm.read_factory_settings(use_empty=True)

@@ -5,9 +5,9 @@ Height at a surface point of the base: the signed distance ``h`` such that P + n
 micro-surface point at the same barycentrics, measured along ``n = normalize(lerp(U))`` with
 ``U`` the unit vertex directions (``unit_directions``; exported as the base's normals, so a
 renderer that displaces along interpolated vertex normals rebuilds the micro-mesh). The
-normal map holds the micro-triangles' normals in the tangent space of the base (tangent along
-+u of the face's UVs, orthogonalised against n; bitangent n × tangent, flipped where the UVs
-are mirrored), encoded as RGB = (n + 1) / 2.
+normal map holds the micro-triangles' normals in the tangent space of the base (the
+interpolated vertex tangents of ``vertex_tangents``, +u of the UVs, orthogonalised against n;
+bitangent n × tangent, flipped where the UVs are mirrored), encoded as RGB = (n + 1) / 2.
 """
 from __future__ import annotations
 
@@ -60,7 +60,7 @@ def bake_maps(mm: MicroMesh, resolution: int = 2048, padding: int = 4,
     normal[..., 2] = 1.0
     X = mm.micro_vertex_positions()
     U = unit_directions(mm)
-    tangent, sign = _face_tangents(mm, atlas)
+    tangents = vertex_tangents(mm, atlas)
     steps = range(0, len(ys), chunk)
     for i, s in enumerate(steps):
         if should_stop():
@@ -76,8 +76,10 @@ def bake_maps(mm: MicroMesh, resolution: int = 2048, padding: int = 4,
         n = _unit(np.einsum("qk,qkc->qc", b, U[tri]))
         height[y, x] = ((point - P) * n).sum(1)
         m = _unit(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
-        t = _unit(tangent[f] - n * (tangent[f] * n).sum(1, keepdims=True))
-        bt = np.cross(n, t) * sign[f][:, None]
+        tv = tangents[atlas.faces[f]]                              # (q, 3, 4)
+        tl = np.einsum("qk,qkc->qc", b, tv[..., :3])
+        t = _unit(tl - n * (tl * n).sum(1, keepdims=True))
+        bt = np.cross(n, t) * tv[:, 0, 3:4]
         normal[y, x] = np.stack([(m * t).sum(1), (m * bt).sum(1), (m * n).sum(1)], 1)
     height = dilate(height, filled, padding)
     normal = dilate(normal, filled, padding)
@@ -114,6 +116,25 @@ def rebuilt_positions(mm: MicroMesh, maps: Maps) -> np.ndarray:
     uv = np.einsum("qk,qkc->qc", b, maps.atlas.corner_uv[f])
     out[used] = P + n * sample(maps.height.astype(np.float64), uv)[:, None]
     return out
+
+
+def vertex_tangents(mm: MicroMesh, atlas: Atlas) -> np.ndarray:
+    """(m, 4) per atlas vertex: the unit tangent (+u, the faces' around it summed and made
+    orthogonal to the unit direction) and ±1 for the bitangent, as glTF's TANGENT; baking and
+    renderers interpolate the same vectors."""
+    tangent, sign = _face_tangents(mm, atlas)
+    m = len(atlas.uv)
+    t = np.zeros((m, 3))
+    s = np.zeros(m)
+    for k in range(3):
+        np.add.at(t, atlas.faces[:, k], tangent)
+        np.add.at(s, atlas.faces[:, k], sign)
+    n = unit_directions(mm)[atlas.vertex]
+    t = t - n * (t * n).sum(1, keepdims=True)
+    bad = np.linalg.norm(t, axis=1) < 1e-12          # no UV gradient: any perpendicular
+    alt = np.cross(n, np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
+    t[bad] = alt[bad]
+    return np.concatenate([_unit(t), np.where(s < 0, -1.0, 1.0)[:, None]], 1)
 
 
 def _face_tangents(mm: MicroMesh, atlas: Atlas) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,67 @@
+"""Files of the maps path, for engines: the normal map as a 16-bit PNG and the base mesh as a
+glTF with UVs, normals (the maps' unit directions) and the normal map as its material's
+``normalTexture``; the height map's file is named in the material's ``extras``. Row 0 of our
+arrays is v = 0 (the bottom); PNG rows and glTF UVs start at the top, so both are flipped here.
+"""
+from __future__ import annotations
+
+import json
+import struct
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+from ..maps import Maps, unit_directions, vertex_tangents
+from ..micromesh import MicroMesh
+from .gltf import Builder
+from .micromesh_export import Y_UP
+
+
+def png16(rgb: np.ndarray) -> bytes:
+    """A 16-bit RGB PNG of ``rgb`` (H, W, 3) in [0, 1], row 0 at the bottom."""
+    h, w = rgb.shape[:2]
+    q = np.rint(np.clip(rgb[::-1], 0.0, 1.0) * 65535).astype(">u2")
+    raw = np.concatenate([np.zeros((h, 1), np.uint8), q.reshape(h, -1).view(np.uint8)], 1)
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + \
+            struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">2I5B", w, h, 16, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(raw.tobytes(), 6)) + chunk(b"IEND", b""))
+
+
+def base_gltf(path: Path, mm: MicroMesh, maps: Maps, normal_uri: str, height_uri: str,
+              y_up: bool = False) -> list[tuple[Path, bytes]]:
+    """``path`` (.gltf) and its ``.bin``: the base split at the atlas' seams, with UVs,
+    normals and a material whose ``normalTexture`` is ``normal_uri`` (``y_up``: Blender's
+    Z-up turned into glTF's Y-up, as ``micromesh_export`` does)."""
+    at = maps.atlas
+    rot = Y_UP.T if y_up else np.eye(3)
+    g = Builder()
+    idx = g.accessor(at.faces.reshape(-1), "<u4", "indices", target=34963)
+    pos = g.accessor(mm.base.vertices[at.vertex] @ rot, "<f4", "positions", target=34962,
+                     bounds=True)
+    nrm = g.accessor(unit_directions(mm)[at.vertex] @ rot, "<f4", "normals", target=34962)
+    tan = vertex_tangents(mm, at)
+    tan = g.accessor(np.concatenate([tan[:, :3] @ rot, tan[:, 3:]], 1), "<f4", "tangents",
+                     target=34962)
+    # glTF's v runs down the image, ours up: v is flipped, the tangent frame is not (the
+    # normal map's +Y is "up in the image" in both, as Blender's own glTF exporter keeps it)
+    uv = g.accessor(np.stack([at.uv[:, 0], 1.0 - at.uv[:, 1]], 1), "<f4", "uvs", target=34962)
+    doc, blob = g.finish(path.with_suffix(".bin").name)
+    doc["images"] = [{"uri": normal_uri}]
+    doc["samplers"] = [{"magFilter": 9729, "minFilter": 9987, "wrapS": 33071, "wrapT": 33071}]
+    doc["textures"] = [{"source": 0, "sampler": 0}]
+    doc["materials"] = [{"name": f"{path.stem}_material", "normalTexture": {"index": 0},
+                         "pbrMetallicRoughness": {"metallicFactor": 0.0},
+                         "extras": {"heightMap": height_uri,
+                                    "heightMapMeaning": "signed distance along the "
+                                    "interpolated vertex normals, world units"}}]
+    doc["meshes"] = [{"name": path.stem, "primitives": [{
+        "attributes": {"POSITION": pos, "NORMAL": nrm, "TANGENT": tan, "TEXCOORD_0": uv}, "indices": idx,
+        "material": 0, "mode": 4}]}]
+    doc["nodes"] = [{"mesh": 0, "name": path.stem}]
+    doc["scenes"], doc["scene"] = [{"nodes": [0]}], 0
+    return [(path.with_suffix(".bin"), blob), (path, json.dumps(doc, indent=1).encode())]
