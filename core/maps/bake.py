@@ -87,12 +87,14 @@ def bake_maps(mm: MicroMesh, resolution: int = 2048, padding: int = 4,
                 filled)
 
 
-def sample(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Bilinear lookup of ``image`` (H, W[, C], row 0 at v = 0) at ``uv`` (q, 2), as a GPU
-    samples a texture (clamped at the borders)."""
+def sample(image: np.ndarray, uv: np.ndarray, nearest: bool = False) -> np.ndarray:
+    """Bilinear (or ``nearest``-texel) lookup of ``image`` (H, W[, C], row 0 at v = 0) at
+    ``uv`` (q, 2), as a GPU samples a texture (clamped at the borders)."""
     h, w = image.shape[:2]
     x = np.clip(uv[:, 0] * w - 0.5, 0, w - 1)
     y = np.clip(uv[:, 1] * h - 0.5, 0, h - 1)
+    if nearest:
+        return image[np.rint(y).astype(np.int64), np.rint(x).astype(np.int64)]
     x0, y0 = np.minimum(x.astype(np.int64), w - 2), np.minimum(y.astype(np.int64), h - 2)
     fx, fy = x - x0, y - y0
     if image.ndim == 3:
@@ -102,7 +104,7 @@ def sample(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return top * (1 - fy) + bot * fy
 
 
-def rebuilt_positions(mm: MicroMesh, maps: Maps) -> np.ndarray:
+def rebuilt_positions(mm: MicroMesh, maps: Maps, nearest: bool = False) -> np.ndarray:
     """(n, 3) the micro-vertices as a renderer rebuilds them from the base and the height map:
     P + n·h(uv), at the same barycentrics (each micro-vertex seen from one face holding it)."""
     t = mm.topology
@@ -114,7 +116,7 @@ def rebuilt_positions(mm: MicroMesh, maps: Maps) -> np.ndarray:
     P = np.einsum("qk,qkc->qc", b, mm.base.vertices[tri])
     n = _unit(np.einsum("qk,qkc->qc", b, unit_directions(mm)[tri]))
     uv = np.einsum("qk,qkc->qc", b, maps.atlas.corner_uv[f])
-    out[used] = P + n * sample(maps.height.astype(np.float64), uv)[:, None]
+    out[used] = P + n * sample(maps.height.astype(np.float64), uv, nearest)[:, None]
     return out
 
 
