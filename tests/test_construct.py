@@ -284,3 +284,13 @@ def test_a_reference_with_faces_wound_both_ways_is_turned_and_said(scene):
     assert clean.metrics["warnings"] == []
     assert any("wound in opposite directions" in w for w in fixed.metrics["warnings"])
     assert abs(fixed.metrics["psnr"] - clean.metrics["psnr"]) < 0.05
+
+
+def test_non_manifold_edges_are_said(scene):
+    """A fin glued onto one edge of the sphere: three faces on that edge, and the run says so."""
+    ref, base = scene
+    a, b = ref.faces[0, 0], ref.faces[0, 1]
+    tip = ref.vertices[[a, b]].mean(0) * 1.3
+    fin = TriMesh(np.vstack([ref.vertices, tip]), np.vstack([ref.faces, [[a, b, ref.n_vertices]]]))
+    r = staged_baseline(fin, base, 1, small())
+    assert any("1 non-manifold edges" in w for w in r.metrics["warnings"]), r.metrics["warnings"]

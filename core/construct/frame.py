@@ -39,9 +39,15 @@ def check_reference(reference: TriMesh) -> None:
 
 def oriented_reference(reference: TriMesh) -> tuple[TriMesh, list[str]]:
     """The reference with consistent winding, closed parts facing out (``core.orient``), and
-    what was turned, in words (the caller's mesh is not changed)."""
+    in words what was turned and which edges no surface can keep (the caller's mesh is not
+    changed)."""
     o = orient(reference)
-    return o.mesh, o.warnings()
+    warnings = o.warnings()
+    nm = int((reference.edge_face_count > 2).sum())
+    if nm:
+        warnings.append(f"the input has {nm} non-manifold edges (three or more faces on one "
+                        "edge): the base and the micro-mesh cannot follow them exactly")
+    return o.mesh, warnings
 
 
 def check_inputs(reference: TriMesh, base: TriMesh) -> None:
