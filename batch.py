@@ -9,7 +9,8 @@ same workflow as the add-on's panel (``operators.pipeline``). Per input NAME it 
 ``NAME.blend`` (holding ``NAME_micromesh`` and ``NAME_base``), the micro-mesh for other tools
 (``NAME.gltf`` + ``.bin`` + ``.bary``; or ``--export glb``), with ``--maps RES`` height and
 normal maps (``NAME_maps`` in the .blend, ``NAME_height.exr``, ``NAME_normal.png``,
-``NAME_base.gltf``), ``NAME.metrics.json`` and with ``--ply`` ``NAME_micromesh.ply``: NAME is the
+``NAME_base.gltf``), the run report (``NAME.report.png``, ``NAME.report.json``),
+``NAME.metrics.json`` and with ``--ply`` ``NAME_micromesh.ply``: NAME is the
 input's stem (``stem_ext`` where two inputs share one), the files appear together when the input
 is done (the metrics file last), and existing results are kept unless ``--force``.
 """
@@ -193,7 +194,7 @@ def find_inputs(path: str | None) -> list[Path]:
 def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict:
     """Base mesh, cameras, construction, write-back, save: the add-on's steps, headless.
     ``out``: the result's :class:`OutputSet` (committed here, when every file is written)."""
-    from micromesh.operators import base_ops, bl_mesh, cameras_io, pipeline, writeback
+    from micromesh.operators import bl_mesh, cameras_io, construct_op, pipeline, writeback
 
     from micromesh.core.base import target_faces
 
@@ -228,7 +229,8 @@ def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict
     interrupt.constructing = True
     try:
         outcome = pipeline.run(reference, base_tm, cams, settings, progress,
-                               interrupt.should_stop, level=args.level, method=args.method)
+                               interrupt.should_stop, level=args.level, method=args.method,
+                               preset_name=args.preset)
     except pipeline.PipelineCancelled:
         raise KeyboardInterrupt from None
     finally:
@@ -245,15 +247,17 @@ def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict
             print(f"[{name}] note: {note}", flush=True)
     for warning in m.get("warnings", []):
         print(f"[{name}] warning: {warning}", flush=True)
-    base = outcome.micromesh.base
-    base_obj = base_ops.link_base(bpy.context, source, base.vertices, base.faces)
-    obj = writeback.write_result(bpy.context, source, base_obj, outcome)
+    obj = construct_op.finish(bpy.context, source, None, outcome)   # as the panel does
     if args.maps:
         m["maps"] = bake_maps(bpy, outcome, source, args, out, progress)
     m["total_time_s"] = time.perf_counter() - t0
     bpy.ops.wm.save_as_mainfile(filepath=str(out.temp(".blend")), compress=True)
     if args.export != "none":
         m["export"] = export(outcome, source, args, out)
+    if outcome.report_png:
+        out.temp(".report.png").write_bytes(outcome.report_png)
+        out.temp(".report.json").write_text(json.dumps(writeback._jsonable(outcome.report),
+                                                       indent=1))
     if args.ply:
         from micromesh.core.meshio import write_ply
 
@@ -363,8 +367,9 @@ def check_usage(args: argparse.Namespace):
         raise BatchError("--maps must be a resolution within 64..16384 (0: no maps)")
     out_dir = Path(args.output)
     names = output_names(inputs) if inputs else [DEMO_NAME]
-    suffixes = [".blend"] + export_suffixes(args) + (["_micromesh.ply"] if args.ply else []) \
-        + [".metrics.json"]
+    report = [".report.png", ".report.json"] if settings.compute_metrics else []
+    suffixes = [".blend"] + export_suffixes(args) + report \
+        + (["_micromesh.ply"] if args.ply else []) + [".metrics.json"]
     sets = [OutputSet(out_dir, n, suffixes) for n in names]
     try:
         check_output_folder(out_dir)

@@ -22,6 +22,8 @@ class Outcome:
     settings: dict = field(default_factory=dict)
     history: dict = field(default_factory=dict)
     method: str = "projection"
+    report_png: bytes | None = None          # core.report: the picture
+    report: dict = field(default_factory=dict)   # and every number in it
 
 
 def pack(out: Outcome) -> bytes:

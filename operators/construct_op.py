@@ -80,15 +80,17 @@ def prepare(context, method: str = "auto") -> Prepared:
     cams = None
     if s.use_scene_cameras and s.camera_collection is not None:
         cams = cameras_io.collection_cameras(s.camera_collection, settings.train_resolution)
-    work = partial(_work, reference, base, cams, settings, levels, s.level, method)
+    work = partial(_work, reference, base, cams, settings, levels, s.level, method,
+                   str(s.preset).lower())
     return Prepared(src, base_obj, work)
 
 
-def _work(reference, base, cams, settings, levels, level, method, progress, should_stop):
+def _work(reference, base, cams, settings, levels, level, method, preset_name, progress,
+          should_stop):
     from .. import preferences  # noqa: F401  (threads are pinned in the main thread)
 
     return pipeline.run(reference, base, cams, settings, progress, should_stop,
-                        levels=levels, level=level, method=method)
+                        levels=levels, level=level, method=method, preset_name=preset_name)
 
 
 def sync_state(scene, state: job.JobState) -> None:
@@ -102,14 +104,16 @@ def sync_state(scene, state: job.JobState) -> None:
     s.status = state.status_text()
 
 
-def finish(context, prep: Prepared, outcome: Outcome) -> bpy.types.Object:
-    base_obj = prep.base_obj
-    if base_obj is None:                # the base the worker built: an object of its own
+def finish(context, source, base_obj, outcome: Outcome) -> bpy.types.Object:
+    """A finished construction into the scene (the panel and ``batch.py``): the base object
+    (linked as ``<source>_base`` when the worker built it), the result, the panel's source and
+    base; returns the result object."""
+    if base_obj is None:
         base = outcome.micromesh.base
-        base_obj = base_ops.link_base(context, prep.source, base.vertices, base.faces)
-    obj = writeback.write_result(context, prep.source, base_obj, outcome)
+        base_obj = base_ops.link_base(context, source, base.vertices, base.faces)
+    obj = writeback.write_result(context, source, base_obj, outcome)
     s = context.scene.micromesh
-    s.source, s.base = prep.source, base_obj
+    s.source, s.base = source, base_obj
     return obj
 
 
@@ -166,7 +170,7 @@ class MICROMESH_OT_construct(bpy.types.Operator):
         except Exception as e:  # noqa: BLE001 - one line to the user
             self.report({"ERROR"}, f"{type(e).__name__}: {e}")
             return {"CANCELLED"}
-        obj = finish(context, prep, outcome)
+        obj = finish(context, prep.source, prep.base_obj, outcome)
         scene.micromesh.progress, scene.micromesh.phase = 1.0, "done"
         self.report({"INFO"}, _summary(obj, outcome))
         return {"FINISHED"}
@@ -210,7 +214,7 @@ class MICROMESH_OT_construct(bpy.types.Operator):
         if state.error:
             self.report({"ERROR"}, state.error)
             return {"CANCELLED"}
-        obj = finish(context, self._prep, state.result)
+        obj = finish(context, self._prep.source, self._prep.base_obj, state.result)
         for area in context.screen.areas:  # show the level colours in solid shading
             if area.type == "VIEW_3D" and area.spaces.active.shading.type == "SOLID":
                 area.spaces.active.shading.color_type = "ATTRIBUTE"

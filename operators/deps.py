@@ -23,6 +23,7 @@ REQUIREMENTS = {
     "numba": "numba==0.68.1",
     "embreex": "embreex==4.4.0.post1",
     "xatlas": "xatlas==0.0.11",
+    "matplotlib": "matplotlib==3.10.8",
 }
 TORCH_CPU_INDEX = "https://download.pytorch.org/whl/cpu"
 # What the operators and panels need to import at all (the rest is checked when they run).

@@ -68,7 +68,7 @@ class MICROMESH_OT_set_face_level(bpy.types.Operator):
 
 
 class MICROMESH_OT_open_report(bpy.types.Operator):
-    """Open the last run's report image (loss and PSNR history, level histogram)"""
+    """Open the run's report: renders and error maps, levels, loss and PSNR, metrics, warnings"""
     bl_idname = "micromesh.open_report"
     bl_label = "Open Report"
 
@@ -79,11 +79,19 @@ class MICROMESH_OT_open_report(bpy.types.Operator):
 
     def execute(self, context):
         from .. import preferences
-        from . import report
 
         obj = context.active_object
+        if obj.get(writeback.REPORT_KEY) is None:
+            self.report({"ERROR"}, "This result has no report (metrics were off)")
+            return {"CANCELLED"}
         path = os.path.join(preferences.cache_dir(), f"{bpy.path.clean_name(obj.name)}_report.png")
-        img = report.write_report(obj, path)
+        with open(path, "wb") as f:
+            f.write(bytes(obj[writeback.REPORT_KEY]))
+        name = f"{obj.name}_report"
+        if name in bpy.data.images:
+            bpy.data.images.remove(bpy.data.images[name])
+        img = bpy.data.images.load(path)
+        img.name = name
         for area in context.screen.areas if context.screen else []:
             if area.type == "IMAGE_EDITOR":
                 area.spaces.active.image = img

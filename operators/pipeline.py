@@ -25,6 +25,7 @@ from ..core.construct import ConstructCancelled, construct, staged_baseline
 from ..core.mesh import TriMesh
 from ..core.settings import ConstructSettings, to_dict
 from ..core.outcome import Outcome
+from ..core.report import make_report
 
 
 class PipelineCancelled(Exception):
@@ -34,13 +35,15 @@ class PipelineCancelled(Exception):
 def run(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
         settings: ConstructSettings, progress: Callable = lambda p: None,
         should_stop: Callable[[], bool] = lambda: False, levels: np.ndarray | None = None,
-        level: int | None = None, method: str = "optimize") -> Outcome:
+        level: int | None = None, method: str = "optimize",
+        preset_name: str = "default") -> Outcome:
     """Construct a micro-mesh of ``reference`` on ``base`` (both world space; ``base`` None:
     build it from the settings).
 
     ``method``: "optimize" (core.construct; with ``levels`` those are kept fixed and only the
     displacements are optimised) or "projection" (the staged baseline at ``levels`` or the
-    uniform ``level``, default ``settings.max_level``); "auto" means "optimize". Raises
+    uniform ``level``, default ``settings.max_level``); "auto" means "optimize". The run
+    report (``core.report``) compares the settings with ``preset_name``'s. Raises
     :class:`PipelineCancelled` when ``should_stop()`` turns true. The result follows the
     core's convention: directions as computed in the unit frame, displacements and bounds in
     world units; ``metrics["shell_volume"]`` is measured in the unit-sphere frame (the
@@ -66,8 +69,13 @@ def run(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
     metrics.update(base_faces=int(mm.base.n_faces), micro_vertices=int(mm.n_vertices),
                    micro_triangles=int(mm.topology.n_triangles),
                    reference_faces=int(reference.n_faces), time_s=time.perf_counter() - t0)
-    return Outcome(mm, res.bounds, metrics, to_dict(settings), dict(res.history or {}),
-                   "projection" if method == "projection" else "optimize")
+    out = Outcome(mm, res.bounds, metrics, to_dict(settings), dict(res.history or {}),
+                  "projection" if method == "projection" else "optimize")
+    if settings.compute_metrics:                  # the run report (core.report)
+        progress({"phase": "report", "iteration": 0, "total": 1})
+        res.metrics = metrics
+        out.report_png, out.report = make_report(res, reference, preset_name)
+    return out
 
 
 def _projection(reference, base, settings, progress, should_stop, levels, level):

@@ -24,6 +24,7 @@ from . import bl_mesh
 PREVIEW_GROUP = "MicroMesh Displacement Preview"
 PREVIEW_MODIFIER = "MicroMesh Preview"
 DATA_KEY = "micromesh_data"
+REPORT_KEY = "micromesh_report_png"
 # One colour per level 0..5 (blue -> red), linear RGBA.
 LEVEL_COLORS = np.array([[0.05, 0.10, 0.60, 1], [0.05, 0.45, 0.80, 1], [0.10, 0.70, 0.30, 1],
                          [0.85, 0.80, 0.10, 1], [0.90, 0.40, 0.05, 1], [0.80, 0.05, 0.05, 1]],
@@ -103,6 +104,9 @@ def write_result(context, source: bpy.types.Object, base_obj: bpy.types.Object |
     obj["micromesh_settings"] = json.dumps(_jsonable(out.settings))
     obj["micromesh_history"] = json.dumps(_jsonable(out.history))
     obj["micromesh_method"] = out.method
+    if out.report_png:
+        store_bytes(obj, REPORT_KEY, out.report_png)
+        obj["micromesh_report"] = json.dumps(_jsonable(out.report))
     add_preview_modifier(obj)
     if base_obj is not None:
         write_base(base_obj, mm)

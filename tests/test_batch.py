@@ -198,7 +198,8 @@ def test_same_stem_inputs_keep_both_results_and_results_are_not_replaced(inputs,
     assert len(faces) == 2                                   # two different results
     assert sorted(p.name for p in out.iterdir()) == sorted(
         f"{n}{s}" for n in ("a_obj", "a_ply")
-        for s in (".blend", ".gltf", ".bin", ".bary", ".metrics.json"))
+        for s in (".blend", ".gltf", ".bin", ".bary", ".report.png", ".report.json",
+                  ".metrics.json"))
     before = (out / "a_ply.metrics.json").read_text()
     again = run_batch("--input", folder, "--output", out, *QUICK, timeout=120)
     assert again.returncode == 2 and "--force" in _error_lines(again.stderr)[0], again.stderr
@@ -269,7 +270,7 @@ def test_maps_for_engines(inputs, tmp_path):
     assert r.returncode == 0, r.stdout + r.stderr
     assert sorted(p.name for p in out.iterdir()) == sorted(
         ["ball.blend", "ball_height.exr", "ball_normal.png", "ball_base.gltf", "ball_base.bin",
-         "ball.metrics.json"])
+         "ball.report.png", "ball.report.json", "ball.metrics.json"])
     m = json.loads((out / "ball.metrics.json").read_text())["metrics"]
     assert m["maps"]["resolution"] == 128 and 0 < m["maps"]["rebuild_rms"] < 0.01
     png = (out / "ball_normal.png").read_bytes()

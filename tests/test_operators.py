@@ -303,9 +303,13 @@ def test_report_image(scene):
     bpy.context.view_layer.objects.active = bpy.data.objects["rock_micromesh"]
     assert bpy.ops.micromesh.open_report() == {"FINISHED"}
     img = bpy.data.images["rock_micromesh_report"]
-    import os
+    from micromesh.core.report import SIZE
 
-    assert os.path.getsize(bpy.path.abspath(img.filepath_raw)) > 1000
+    assert tuple(img.size) == SIZE
+    res = bpy.data.objects["rock_micromesh"]
+    report = json.loads(res["micromesh_report"])
+    assert report["metrics"]["micro_triangles"] == writeback.load_outcome(res).metrics[
+        "micro_triangles"]
 
 
 def test_bad_input_is_reported(scene):

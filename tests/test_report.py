@@ -1,0 +1,64 @@
+"""The run report (core.report): the picture's size and panels, and the JSON's numbers."""
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+
+from core.construct import construct, staged_baseline
+from core.report import ERROR_SCALE, LEVEL_COLORS, SIZE, make_report
+from test_construct import scene, small  # noqa: F401  (the fixture)
+
+
+def _png(data: bytes) -> np.ndarray:
+    from matplotlib.image import imread
+
+    return imread(io.BytesIO(data), format="png")[..., :3]
+
+
+def _has_colour(img: np.ndarray, rgb, tol: float = 0.02) -> bool:
+    return bool((np.abs(img - np.asarray(rgb)).max(-1) < tol).any())
+
+
+@pytest.fixture(scope="module")
+def optimised(scene):  # noqa: F811
+    ref, base = scene
+    return ref, construct(ref, base, None, small(max_level=2))
+
+
+def test_report_picture_and_numbers(optimised):
+    ref, res = optimised
+    png, data = make_report(res, ref, "fast")
+    img = _png(png)
+    assert img.shape[:2] == (SIZE[1], SIZE[0])
+    # the level histogram's bars, one per level in use, in the levels' colours
+    for level in np.unique(res.micromesh.levels):
+        assert _has_colour(img, LEVEL_COLORS[level]), level
+    # the heat map's colour bar runs to its white-hot end
+    from matplotlib import colormaps
+
+    assert _has_colour(img, colormaps["inferno"](1.0)[:3], tol=0.03)
+    m = res.metrics
+    for k in ("psnr", "shell_volume", "micro_triangles", "base_faces", "bytes", "cracks"):
+        assert data["metrics"][k] == m[k], k
+    assert data["levels_hist"] == np.bincount(res.micromesh.levels, minlength=6).tolist()
+    assert data["history"]["iteration"] == res.history["iteration"]
+    assert [e["iteration"] for e in data["events"]] == [5, 15]
+    assert data["settings_changed"]["max_level"] == 2 and "threads" not in data["settings_changed"]
+    assert data["metrics"]["compression"] == pytest.approx(
+        12 * (ref.n_vertices + ref.n_faces) / m["bytes"])
+    assert len(data["images_psnr"]) == 4 and min(data["images_psnr"]) > 20
+    assert ERROR_SCALE == 0.25
+
+
+def test_report_of_a_baseline_has_no_curves_and_says_its_warnings(scene):  # noqa: F811
+    ref, base = scene
+    mask = np.random.default_rng(1).random(ref.n_faces) < 0.3
+    from core.mesh import TriMesh
+
+    flipped = TriMesh(ref.vertices, np.where(mask[:, None], ref.faces[:, ::-1], ref.faces))
+    res = staged_baseline(flipped, base, 1, small())
+    png, data = make_report(res, flipped)
+    assert data["history"]["iteration"] == [] and data["warnings"]
+    assert _png(png).shape[:2] == (SIZE[1], SIZE[0])
