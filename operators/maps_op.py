@@ -124,7 +124,8 @@ def _material(name: str, normal: bpy.types.Image) -> bpy.types.Material:
     low subdivision levels or for an engine (on the fully subdivided mesh the geometry already
     carries the detail, and the map would tilt it twice)."""
     mat = bpy.data.materials.get(name) or bpy.data.materials.new(name)
-    mat.use_nodes = True
+    if bpy.app.version < (5, 0, 0):      # 5.0: materials always have nodes
+        mat.use_nodes = True
     nodes = mat.node_tree.nodes
     for node in [x for x in nodes if x.type in ("TEX_IMAGE", "NORMAL_MAP")]:
         nodes.remove(node)
