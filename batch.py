@@ -285,7 +285,7 @@ def bake_maps(bpy, outcome, source, args, out, progress) -> dict:
     EXR height map, the 16-bit PNG normal map and the base as glTF with UVs and normals."""
     import numpy as np
     from micromesh.core.io.maps_files import base_gltf, png16
-    from micromesh.core.maps import bake_maps as bake, rebuilt_positions
+    from micromesh.core.maps import bake_maps as bake, rebuild_error
     from micromesh.operators import maps_op
     from micromesh.operators.sources import export_y_up
 
@@ -299,7 +299,7 @@ def bake_maps(bpy, outcome, source, args, out, progress) -> dict:
     for path, data in base_gltf(out.final("_base.gltf"), mm, maps, f"{name}_normal.png",
                                 f"{name}_height.exr", y_up=export_y_up(source)):
         out.temp(path.name[len(name):]).write_bytes(data)
-    err = np.linalg.norm(rebuilt_positions(mm, maps) - mm.micro_vertex_positions(), axis=1)
+    err = rebuild_error(mm, maps)
     return {"resolution": args.maps, "time_s": time.perf_counter() - t,
             "rebuild_rms": float(np.sqrt((err ** 2).mean()) / mm.base.bbox_diagonal),
             "rebuild_max": float(err.max(initial=0.0) / mm.base.bbox_diagonal)}

@@ -18,7 +18,7 @@ import numpy as np
 
 from _common import parser, print_table, timed, write_json
 from core.io.micromesh_import import read_micromesh
-from core.maps import bake_maps, rebuilt_positions
+from core.maps import bake_maps, rebuild_error
 
 
 def main() -> None:
@@ -30,14 +30,14 @@ def main() -> None:
     for f in args.files:
         path = Path(f)
         mm = read_micromesh(path).micromesh()
-        X, diag = mm.micro_vertex_positions(), mm.base.bbox_diagonal
+        diag = mm.base.bbox_diagonal
         judged = path.parent / f"judge_{path.stem}.json"
         geom = (json.loads(judged.read_text())["geom_error"]["ref_to_mm"]["avg"]
                 if judged.exists() else float("nan"))
         for res in args.res:
             secs, maps = timed(lambda: bake_maps(mm, res))
-            d = np.linalg.norm(rebuilt_positions(mm, maps) - X, axis=1) / diag
-            dn = np.linalg.norm(rebuilt_positions(mm, maps, nearest=True) - X, axis=1) / diag
+            d = rebuild_error(mm, maps) / diag
+            dn = rebuild_error(mm, maps, nearest=True) / diag
             rows.append({"mesh": path.stem, "res": res, "bake_s": round(secs, 1),
                          "rms": float(np.sqrt((d ** 2).mean())), "max": float(d.max()),
                          "rms_nearest": float(np.sqrt((dn ** 2).mean())),

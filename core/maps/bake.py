@@ -1,10 +1,10 @@
 """Height and normal maps of a micro-mesh on a UV atlas of its base: what most renderers and
 engines can display today (a base mesh with UVs, a height map, a normal map).
 
-Height at a surface point of the base: the signed distance ``h`` such that P + n·h is the
-micro-surface point at the same barycentrics, measured along ``n = normalize(lerp(U))`` with
+Height at a surface point P of the base: the signed distance ``h`` along
+``n = normalize(lerp(U))`` to the nearest crossing of the micro-surface (a ray cast both ways),
 ``U`` the unit vertex directions (``unit_directions``; exported as the base's normals, so a
-renderer that displaces along interpolated vertex normals rebuilds the micro-mesh). The
+renderer that displaces along interpolated vertex normals rebuilds the micro-surface). The
 normal map holds the micro-triangles' normals in the tangent space of the base (the
 interpolated vertex tangents of ``vertex_tangents``, +u of the UVs, orthogonalised against n;
 bitangent n × tangent, flipped where the UVs are mirrored), encoded as RGB = (n + 1) / 2.
@@ -16,6 +16,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..bake import bake_displacements, nearest_points
 from ..micromesh import MicroMesh
 from .atlas import Atlas, dilate, texel_faces, uv_atlas
 
@@ -58,9 +59,13 @@ def bake_maps(mm: MicroMesh, resolution: int = 2048, padding: int = 4,
     height = np.zeros(filled.shape)
     normal = np.zeros(filled.shape + (3,))
     normal[..., 2] = 1.0
-    X = mm.micro_vertex_positions()
     U = unit_directions(mm)
     tangents = vertex_tangents(mm, atlas)
+    tess = mm.tessellate()
+    surface = tess.to_trimesh()
+    facet = surface.face_normals
+    offsets = np.linalg.norm(tess.vertices - mm.micro_vertex_base_positions(), axis=1)
+    reach = 2.0 * offsets.max(initial=0.0) + 1e-9 * mm.base.bbox_diagonal
     steps = range(0, len(ys), chunk)
     for i, s in enumerate(steps):
         if should_stop():
@@ -68,14 +73,12 @@ def bake_maps(mm: MicroMesh, resolution: int = 2048, padding: int = 4,
         progress({"phase": "maps", "iteration": i, "total": len(steps) + 1})
         y, x = ys[s:s + chunk], xs[s:s + chunk]
         f, b = face[y, x], bary[y, x]
-        idx, w = mm.locate(f, b)
-        corners = X[idx]                                           # (q, 3, 3)
-        point = np.einsum("qk,qkc->qc", w, corners)
         tri = mm.base.faces[f]
         P = np.einsum("qk,qkc->qc", b, mm.base.vertices[tri])
         n = _unit(np.einsum("qk,qkc->qc", b, U[tri]))
-        height[y, x] = ((point - P) * n).sum(1)
-        m = _unit(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
+        hit = bake_displacements(P, n, surface, max_distance=reach)   # along ±n, nearest
+        height[y, x] = hit.displacement
+        m = facet[hit.face]
         tv = tangents[atlas.faces[f]]                              # (q, 3, 4)
         tl = np.einsum("qk,qkc->qc", b, tv[..., :3])
         t = _unit(tl - n * (tl * n).sum(1, keepdims=True))
@@ -137,6 +140,14 @@ def vertex_tangents(mm: MicroMesh, atlas: Atlas) -> np.ndarray:
     alt = np.cross(n, np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
     t[bad] = alt[bad]
     return np.concatenate([_unit(t), np.where(s < 0, -1.0, 1.0)[:, None]], 1)
+
+
+def rebuild_error(mm: MicroMesh, maps: Maps, nearest: bool = False) -> np.ndarray:
+    """(n,) distance from each point of :func:`rebuilt_positions` to the micro-surface: how far
+    the surface a renderer rebuilds from the base and the height map lies from the micro-mesh
+    (zero for an exact map: the rebuilt points need not be the micro-vertices)."""
+    _, _, d = nearest_points(rebuilt_positions(mm, maps, nearest), mm.tessellate().to_trimesh())
+    return d
 
 
 def _face_tangents(mm: MicroMesh, atlas: Atlas) -> tuple[np.ndarray, np.ndarray]:
