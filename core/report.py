@@ -58,6 +58,11 @@ def make_report(result, reference: TriMesh, preset_name: str = "default"
     data = report_data(metrics, result.history or {}, result.micromesh.levels, changed,
                        preset_name, 12 * (reference.n_vertices + reference.n_faces),
                        result.timings or {}, warnings)
+    from .construct.frame import device as torch_device
+    from .threads import default_threads
+
+    data["device"] = str(torch_device(s.device))
+    data["threads"] = int(s.threads or default_threads())
     data["images_psnr"] = [float(10 * np.log10(1 / max(((a - b) ** 2).mean(), 1e-20)))
                            for a, b in zip(images["micromesh"], images["reference"])]
     title = (f"{result.micromesh.base.n_faces:,} base triangles, "
@@ -159,6 +164,7 @@ def draw_report(data: dict, images: dict[str, np.ndarray], title: str) -> bytes:
             if data["metrics"].get(k) is not None]
     rows += [[f"time: {k}", f"{v:.1f} s"] for k, v in sorted(data["timings"].items())
              if v >= 0.5]
+    rows += [["device", data.get("device", "")], ["threads", str(data.get("threads", ""))]]
     rows += [["preset", data["preset"]]] + [[f"setting {k}", str(v)]
                                             for k, v in data["settings_changed"].items()]
     t = table.table(cellText=rows, colWidths=[0.7, 0.3], loc="upper center")

@@ -49,6 +49,7 @@ def test_report_picture_and_numbers(optimised):
     assert data["metrics"]["compression"] == pytest.approx(
         12 * (ref.n_vertices + ref.n_faces) / m["bytes"])
     assert len(data["images_psnr"]) == 4 and min(data["images_psnr"]) > 20
+    assert data["device"] == "cpu" and data["threads"] >= 1
     assert ERROR_SCALE == 0.25
 
 
