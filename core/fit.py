@@ -89,6 +89,13 @@ def _barycentrics(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) ->
     return np.stack([1.0 - bv - bw, bv, bw], 1)
 
 
+def fit_samples(mm: MicroMesh, reference: TriMesh, density: float = 2.0):
+    """:func:`reference_samples` at least ``density`` per micro-triangle of ``mm``."""
+    T = mm.topology.triangles
+    area = _areas(mm.micro_vertex_positions(), T).sum()
+    return reference_samples(reference, area / (len(T) * density))
+
+
 def fit_displacements(mm: MicroMesh, reference: TriMesh, smoothness: float = 1e-3,
                       iterations: int = 2, density: float = 2.0, samples=None) -> np.ndarray:
     """Displacements (n,) of ``mm``'s micro-vertices fitted to ``reference`` (see the module
@@ -105,8 +112,7 @@ def fit_displacements(mm: MicroMesh, reference: TriMesh, smoothness: float = 1e-
     n = mm.n_vertices
     d = mm.displacements.copy()
     if samples is None:
-        area = _areas(P + D * d[:, None], T).sum()
-        samples = reference_samples(reference, area / (len(T) * density))
+        samples = fit_samples(mm, reference, density)
     pts, normals, weights = samples
     L = uniform_laplacian(n, T)
     reg = smoothness * (L.T @ L) + 1e-9 * sp.eye(n)
@@ -129,3 +135,14 @@ def fit_displacements(mm: MicroMesh, reference: TriMesh, smoothness: float = 1e-
 
 def _areas(X: np.ndarray, T: np.ndarray) -> np.ndarray:
     return 0.5 * np.linalg.norm(np.cross(X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]]), axis=1)
+
+
+def face_residuals(mm: MicroMesh, samples) -> np.ndarray:
+    """(nf,) per base face, the weighted squared distance of the reference samples (of
+    :func:`reference_samples`) whose nearest micro-surface point lies on that face: where the
+    fitted micro-mesh still misses the reference."""
+    pts, _, weights = samples
+    tess = mm.tessellate()
+    _, tri, dist = ClosestPointIndex(tess.vertices, tess.triangles).query(pts)
+    return np.bincount(tess.triangle_face[tri], weights=weights * dist ** 2,
+                       minlength=mm.base.n_faces)

@@ -73,6 +73,9 @@ class ConstructSettings:
     final_fit: bool = True           # fit the displacements to the reference at the end
                                      # (core.fit, least squares; ours)
     fit_smoothness: float = 1e-3     # weight of |L d|² in the fit
+    residual_lod: float = 0.15       # after the fit, this fraction of faces may go up a level
+                                     # where it still misses the reference, others down, same
+                                     # budget, then fit again (0: off; ours)
     fold_bounds: bool = True         # fold the tight bounds into base and directions: the
                                      # result is what a .bary file holds (core.bounds.baked)
 

@@ -294,3 +294,28 @@ def test_non_manifold_edges_are_said(scene):
     fin = TriMesh(np.vstack([ref.vertices, tip]), np.vstack([ref.faces, [[a, b, ref.n_vertices]]]))
     r = staged_baseline(fin, base, 1, small())
     assert any("1 non-manifold edges" in w for w in r.metrics["warnings"]), r.metrics["warnings"]
+
+
+def test_residual_exchange_moves_levels_to_where_the_fit_misses():
+    """Faces with large fit residuals go up, quiet ones go down, the budget and the ±1 rule
+    hold (core.construct.choose_levels.residual_exchange)."""
+    from types import SimpleNamespace
+
+    from core.construct.choose_levels import residual_exchange
+    from core.lod import effective_micro_triangles
+    from core.microtopology import is_balanced
+
+    v, f = icosphere(2)
+    base = TriMesh(v, f)
+    levels = np.full(base.n_faces, 2)
+    cost = lambda lv: effective_micro_triangles(lv, base.face_adjacency)  # noqa: E731
+    run = SimpleNamespace(s=preset("default", residual_lod=0.15), base=base, cost=cost,
+                          budget=cost(levels))
+    E = np.full(base.n_faces, 1e-6)
+    hot = np.flatnonzero(base.vertices[base.faces].mean(1)[:, 2] > 0.8)
+    E[hot] = 1.0
+    new = residual_exchange(run, levels, E)
+    assert cost(new) <= run.budget and is_balanced(base, new)
+    assert (new[hot] == 3).all() and (new < 2).any()
+    run.s = preset("default", residual_lod=0.0)
+    np.testing.assert_array_equal(residual_exchange(run, levels, E), levels)

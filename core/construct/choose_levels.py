@@ -94,3 +94,47 @@ def _post_process(run: RunState, mm: MicroMesh) -> MicroMesh:
                                   s.min_level)
     return mm.with_levels(new)
 
+
+
+def residual_exchange(run: RunState, levels: np.ndarray, residuals: np.ndarray) -> np.ndarray:
+    """Levels moved to where the fitted micro-mesh still misses the reference (ours), at the
+    same budget: the ``s.residual_lod`` fraction of faces with the largest residual per
+    micro-triangle a level up would add go up (balanced); then faces with the smallest
+    residual per micro-triangle saved go down (only where no edge neighbour is above them,
+    which keeps the ±1 rule) until the budget holds; what is left is spent by the same order
+    as the ups. A level up is taken to remove 3/4 of a face's residual, a level down to
+    quadruple it."""
+    s, base = run.s, run.base
+    lv = np.asarray(levels, dtype=np.int64)
+    if run.cost is None or s.residual_lod <= 0:
+        return lv
+    E = np.asarray(residuals, dtype=np.float64)
+    up_gain = np.where(lv < s.max_level, E / 4.0 ** lv, -np.inf)
+    n_up = int(s.residual_lod * np.isfinite(up_gain).sum())
+    ups = np.argsort(-up_gain, kind="stable")[:n_up]
+    new = lv.copy()
+    new[ups] += 1
+    new = balance_levels(base, np.minimum(new, s.max_level))
+    if run.cost(new) > run.budget:
+        adj = base.face_adjacency
+        nb_hi = np.where(adj >= 0, new[np.maximum(adj, 0)], -1).max(axis=1)
+        down = (new > max(s.min_level, 0)) & (nb_hi <= new) & (new <= lv)
+        cand = np.flatnonzero(down)
+        order = cand[np.argsort(E[cand] / 4.0 ** (new[cand] - 1), kind="stable")]
+        lo, hi = 0, len(order)              # the fewest downs that fit the budget
+        while lo < hi:
+            mid = (lo + hi) // 2
+            trial = new.copy()
+            trial[order[:mid]] -= 1
+            if run.cost(trial) <= run.budget:
+                hi = mid
+            else:
+                lo = mid + 1
+        new[order[:lo]] -= 1
+        if run.cost(new) > run.budget:     # the downs could not pay for the ups: keep the old
+            return lv
+    nb_lo = np.where(base.face_adjacency >= 0, new[np.maximum(base.face_adjacency, 0)],
+                     99).min(axis=1)
+    up = (new < s.max_level) & (nb_lo >= new)
+    return trim_to_budget(new, np.where(up, new + 1, new),
+                          np.where(up, E / 4.0 ** new, -np.inf), run.cost, run.budget)

@@ -1,6 +1,8 @@
 """The end of a construction: final levels, balance, the least-squares fit of the
-displacements (``core.fit``), tight bounds folded into the base and the directions (what a
-file holds: ``core.bounds.baked``), metrics, and the result in the caller's frame."""
+displacements (``core.fit``), levels moved to where the fit still misses the reference and
+fitted again (``choose_levels.residual_exchange``), tight bounds folded into the base and the
+directions (what a file holds: ``core.bounds.baked``), metrics, and the result in the
+caller's frame."""
 from __future__ import annotations
 
 import time
@@ -10,8 +12,8 @@ import numpy as np
 from ..bounds import baked, tight_bounds, unit_bounds
 from ..mesh import TriMesh
 from ..microtopology import balance_levels
-from ..fit import fit_displacements
-from .choose_levels import final_levels
+from ..fit import face_residuals, fit_displacements, fit_samples
+from .choose_levels import final_levels, residual_exchange
 from .evaluate import evaluate
 from .frame import to_caller_frame
 from .params import Parameters
@@ -29,8 +31,19 @@ def finalise(run: RunState, params: Parameters, reference: TriMesh, base: TriMes
     if run.s.final_fit:
         run.check_stop()
         with run.timer.phase("fit"):
+            samples = fit_samples(mm, run.scene.ref)
             mm = mm.with_displacements(fit_displacements(mm, run.scene.ref,
-                                                         run.s.fit_smoothness))
+                                                         run.s.fit_smoothness, samples=samples))
+        if run.s.residual_lod > 0 and run.fixed is None and run.cost is not None:
+            run.check_stop()
+            with run.timer.phase("residual_lod"):
+                new = residual_exchange(run, mm.levels, face_residuals(mm, samples))
+            if not np.array_equal(new, mm.levels):
+                with run.timer.phase("fit"):
+                    mm = mm.with_levels(new)
+                    mm = mm.with_displacements(fit_displacements(
+                        mm, run.scene.ref, run.s.fit_smoothness, samples=fit_samples(
+                            mm, run.scene.ref)))
     with run.timer.phase("finalize"):
         bounds = tight_bounds(mm)
         if run.s.fold_bounds and run.fixed is None:  # what a file holds (not: a frozen base)
