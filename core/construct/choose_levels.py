@@ -101,25 +101,36 @@ def residual_exchange(run: RunState, levels: np.ndarray, residuals: np.ndarray) 
     same budget: the ``s.residual_lod`` fraction of faces with the largest residual per
     micro-triangle a level up would add go up (balanced); then faces with the smallest
     residual per micro-triangle saved go down (only where no edge neighbour is above them,
-    which keeps the ±1 rule) until the budget holds; what is left is spent by the same order
+    which keeps the ±1 rule) until the budget holds (where they cannot pay for all the ups,
+    half as many ups are tried, down to an eighth); what is left is spent by the same order
     as the ups. A level up is taken to remove 3/4 of a face's residual, a level down to
     quadruple it."""
-    s, base = run.s, run.base
+    s = run.s
     lv = np.asarray(levels, dtype=np.int64)
     if run.cost is None or s.residual_lod <= 0:
         return lv
     E = np.asarray(residuals, dtype=np.float64)
     up_gain = np.where(lv < s.max_level, E / 4.0 ** lv, -np.inf)
+    ranked = np.argsort(-up_gain, kind="stable")
     n_up = int(s.residual_lod * np.isfinite(up_gain).sum())
-    ups = np.argsort(-up_gain, kind="stable")[:n_up]
+    for k in (n_up, n_up // 2, n_up // 4, n_up // 8):
+        new = _exchanged(run, lv, ranked[:k], E) if k > 0 else None
+        if new is not None:
+            return new
+    return lv
+
+
+def _exchanged(run: RunState, lv: np.ndarray, ups: np.ndarray, E: np.ndarray
+               ) -> np.ndarray | None:
+    """:func:`residual_exchange` with these ups; None where the downs cannot pay for them."""
+    s, base = run.s, run.base
+    adj = base.face_adjacency
     new = lv.copy()
     new[ups] += 1
     new = balance_levels(base, np.minimum(new, s.max_level))
     if run.cost(new) > run.budget:
-        adj = base.face_adjacency
         nb_hi = np.where(adj >= 0, new[np.maximum(adj, 0)], -1).max(axis=1)
-        down = (new > max(s.min_level, 0)) & (nb_hi <= new) & (new <= lv)
-        cand = np.flatnonzero(down)
+        cand = np.flatnonzero((new > max(s.min_level, 0)) & (nb_hi <= new) & (new <= lv))
         order = cand[np.argsort(E[cand] / 4.0 ** (new[cand] - 1), kind="stable")]
         lo, hi = 0, len(order)              # the fewest downs that fit the budget
         while lo < hi:
@@ -131,10 +142,9 @@ def residual_exchange(run: RunState, levels: np.ndarray, residuals: np.ndarray) 
             else:
                 lo = mid + 1
         new[order[:lo]] -= 1
-        if run.cost(new) > run.budget:     # the downs could not pay for the ups: keep the old
-            return lv
-    nb_lo = np.where(base.face_adjacency >= 0, new[np.maximum(base.face_adjacency, 0)],
-                     99).min(axis=1)
+        if run.cost(new) > run.budget:
+            return None
+    nb_lo = np.where(adj >= 0, new[np.maximum(adj, 0)], 99).min(axis=1)
     up = (new < s.max_level) & (nb_lo >= new)
     return trim_to_budget(new, np.where(up, new + 1, new),
                           np.where(up, E / 4.0 ** new, -np.inf), run.cost, run.budget)
