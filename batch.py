@@ -194,7 +194,8 @@ def find_inputs(path: str | None) -> list[Path]:
 def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict:
     """Base mesh, cameras, construction, write-back, save: the add-on's steps, headless.
     ``out``: the result's :class:`OutputSet` (committed here, when every file is written)."""
-    from micromesh.operators import bl_mesh, cameras_io, construct_op, pipeline, writeback
+    from micromesh.operators import (bl_mesh, cameras_io, construct_op, pipeline, result_files,
+                                     writeback)
 
     from micromesh.core.base import target_faces
 
@@ -249,15 +250,14 @@ def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict
         print(f"[{name}] warning: {warning}", flush=True)
     obj = construct_op.finish(bpy.context, source, None, outcome)   # as the panel does
     if args.maps:
-        m["maps"] = bake_maps(bpy, outcome, source, args, out, progress)
+        m["maps"] = result_files.write_maps(bpy.context, outcome, source, args.maps, out,
+                                            progress)
     m["total_time_s"] = time.perf_counter() - t0
     bpy.ops.wm.save_as_mainfile(filepath=str(out.temp(".blend")), compress=True)
     if args.export != "none":
-        m["export"] = export(outcome, source, args, out)
-    if outcome.report_png:
-        out.temp(".report.png").write_bytes(outcome.report_png)
-        out.temp(".report.json").write_text(json.dumps(writeback._jsonable(outcome.report),
-                                                       indent=1))
+        m["export"] = result_files.write_export(outcome, source, args.export, args.values,
+                                                args.layout, out)
+    result_files.write_report(outcome, out)
     if args.ply:
         from micromesh.core.meshio import write_ply
 
@@ -275,50 +275,10 @@ def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict
     return m
 
 
-def export_suffixes(args: argparse.Namespace) -> list[str]:
+def result_suffixes(args: argparse.Namespace) -> list[str]:
+    """The export's and the maps' files of one result (``operators.result_files``)."""
     maps = ["_height.exr", "_normal.png", "_base.gltf", "_base.bin"] if args.maps else []
     return {"gltf": [".gltf", ".bin", ".bary"], "glb": [".glb"], "none": []}[args.export] + maps
-
-
-def bake_maps(bpy, outcome, source, args, out, progress) -> dict:
-    """Height and normal maps: ``NAME_maps`` in the scene (images packed) and, for engines, the
-    EXR height map, the 16-bit PNG normal map and the base as glTF with UVs and normals."""
-    import numpy as np
-    from micromesh.core.io.maps_files import base_gltf, png16
-    from micromesh.core.maps import bake_maps as bake, rebuild_error
-    from micromesh.operators import maps_op
-    from micromesh.operators.sources import export_y_up
-
-    mm, name = outcome.micromesh, out.name
-    t = time.perf_counter()
-    maps = bake(mm, args.maps, progress=progress)
-    maps_op.maps_object(bpy.context, source, mm, maps, f"{source.name}_maps")
-    img = maps_op.image(f"{name}_height_file", maps.height, path=str(out.temp("_height.exr")))
-    bpy.data.images.remove(img)
-    out.temp("_normal.png").write_bytes(png16(maps.normal))
-    for path, data in base_gltf(out.final("_base.gltf"), mm, maps, f"{name}_normal.png",
-                                f"{name}_height.exr", y_up=export_y_up(source)):
-        out.temp(path.name[len(name):]).write_bytes(data)
-    err = rebuild_error(mm, maps)
-    return {"resolution": args.maps, "time_s": time.perf_counter() - t,
-            "rebuild_rms": float(np.sqrt((err ** 2).mean()) / mm.base.bbox_diagonal),
-            "rebuild_max": float(err.max(initial=0.0) / mm.base.bbox_diagonal)}
-
-
-def export(outcome, source, args, out) -> dict:
-    """The micro-mesh as glTF + .bary into the output set, in the input file's coordinates
-    (``sources``: files Blender's importers turned Z-up are turned back to Y-up)."""
-    from micromesh.core.io.micromesh_export import micromesh_files
-    from micromesh.operators.sources import export_y_up
-
-    files, rep = micromesh_files(out.final(f".{args.export}"), outcome.micromesh,
-                                 outcome.bounds, value_format=args.values, layout=args.layout,
-                                 y_up=export_y_up(source))
-    for path, data in files:
-        out.temp(path.suffix).write_bytes(data)
-    return {"files": [p.name for p, _ in files], "bytes": rep.bytes,
-            "values": args.values, "layout": args.layout,
-            "quantization_max": rep.quantization_max, "quantization_rms": rep.quantization_rms}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -368,7 +328,7 @@ def check_usage(args: argparse.Namespace):
     out_dir = Path(args.output)
     names = output_names(inputs) if inputs else [DEMO_NAME]
     report = [".report.png", ".report.json"] if settings.compute_metrics else []
-    suffixes = [".blend"] + export_suffixes(args) + report \
+    suffixes = [".blend"] + result_suffixes(args) + report \
         + (["_micromesh.ply"] if args.ply else []) + [".metrics.json"]
     sets = [OutputSet(out_dir, n, suffixes) for n in names]
     try:
