@@ -89,6 +89,13 @@ class MicroMesh:
         return MicroMesh(self.base.with_vertices(vertices), self.directions, self.levels,
                          self.displacements, self._topology)
 
+    def transformed(self, matrix: np.ndarray) -> "MicroMesh":
+        """Base positions and directions through the linear map ``matrix`` (3, 3) (an axis
+        change, a rotation): the same micro-mesh in another frame, topology kept."""
+        m = np.asarray(matrix, dtype=np.float64)
+        return MicroMesh(self.base.with_vertices(self.base.vertices @ m.T), self.directions @ m.T,
+                         self.levels, self.displacements, self._topology)
+
     def with_directions(self, directions: np.ndarray) -> "MicroMesh":
         return MicroMesh(self.base, directions, self.levels, self.displacements, self._topology)
 

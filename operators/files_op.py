@@ -13,7 +13,6 @@ from bpy_extras.io_utils import ExportHelper, ImportHelper
 from ..core.io.micromesh_export import Y_UP, ExportError, write_micromesh
 from ..core.io.micromesh_import import MicromeshFileError, read_micromesh
 from ..core.metrics import mmt_formula_bytes
-from ..core.micromesh import MicroMesh
 from ..core.outcome import Outcome
 from . import base_ops, bl_mesh, writeback
 
@@ -98,8 +97,7 @@ class MICROMESH_OT_import(bpy.types.Operator, ImportHelper):
             self.report({"ERROR"}, f"Cannot import {path.name}: {e}")
             return {"CANCELLED"}
         if self.y_up:   # glTF's Y-up back to Blender's Z-up (Y_UP is orthonormal)
-            mm = MicroMesh(mm.base.with_vertices(mm.base.vertices @ Y_UP), mm.directions @ Y_UP,
-                           mm.levels, mm.displacements, mm._topology)
+            mm = mm.transformed(Y_UP.T)
         metrics = {"base_faces": int(mm.base.n_faces), "micro_triangles": mm.topology.n_triangles,
                    "micro_vertices": mm.n_vertices,
                    "bytes_mmt": mmt_formula_bytes(mm.levels, mm.base.n_vertices),

@@ -114,8 +114,7 @@ def micromesh_files(path: str | os.PathLike, mm: MicroMesh,
     b = tight_bounds(mm) if bounds is None else bounds
     qmax, qrms = quantization_error(mm, b, value_format)
     if y_up:
-        mm = MicroMesh(mm.base.with_vertices(mm.base.vertices @ Y_UP.T), mm.directions @ Y_UP.T,
-                       mm.levels, mm.displacements, mm._topology)
+        mm = mm.transformed(Y_UP)
     bary = encode(to_bary(mm, b, value_format, layout))
     glb = path.suffix.lower() == ".glb"
     doc, blob = _document(mm, b, path, bary if glb else None)
