@@ -181,15 +181,10 @@ class MICROMESH_OT_construct(bpy.types.Operator):
         prep = self._prepare(context)
         if prep is None:
             return {"CANCELLED"}
-        try:
-            self._job = job.Job(prep.work).start()
-        except job.JobBusy as e:
-            self.report({"ERROR"}, str(e))
+        if not job.start_modal(self, context, prep.work):
             return {"CANCELLED"}
         self._prep = prep
         context.scene.micromesh.running = True
-        self._timer = context.window_manager.event_timer_add(0.2, window=context.window)
-        context.window_manager.modal_handler_add(self)
         return {"RUNNING_MODAL"}
 
     def modal(self, context, event):
@@ -222,8 +217,7 @@ class MICROMESH_OT_construct(bpy.types.Operator):
         return {"FINISHED"}
 
     def _cleanup(self, context):
-        context.window_manager.event_timer_remove(self._timer)
-        context.workspace.status_text_set(None)
+        job.end_modal(self, context)
         s = context.scene.micromesh
         s.running = False
         s.progress = 0.0 if not (self._job and self._job.state.result) else 1.0

@@ -160,6 +160,26 @@ class Job:
         return s
 
 
+def start_modal(op, context, work: Callable[[Callable, Callable], Any]) -> bool:
+    """Start ``work`` in the worker and make the operator ``op`` modal, woken every 0.2 s to
+    poll it (``op._job``, ``op._timer``); False (reported on ``op``) when a job already runs.
+    The window objects come in through ``context``: nothing here imports bpy."""
+    try:
+        op._job = Job(work).start()
+    except JobBusy as e:
+        op.report({"ERROR"}, str(e))
+        return False
+    op._timer = context.window_manager.event_timer_add(0.2, window=context.window)
+    context.window_manager.modal_handler_add(op)
+    return True
+
+
+def end_modal(op, context) -> None:
+    """Undo :func:`start_modal`'s timer and clear the status bar."""
+    context.window_manager.event_timer_remove(op._timer)
+    context.workspace.status_text_set(None)
+
+
 def stop_active(timeout: float = 10.0) -> bool:
     """Cancel the running job (file closed, Blender quitting); True if one was stopped."""
     job = _ACTIVE

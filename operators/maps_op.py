@@ -170,14 +170,8 @@ class MICROMESH_OT_bake_maps(bpy.types.Operator):
     def invoke(self, context, event):
         if bpy.app.background or context.window is None:
             return self.execute(context)
-        try:
-            self._job = job.Job(self._work(context)).start()
-        except job.JobBusy as e:
-            self.report({"ERROR"}, str(e))
-            return {"CANCELLED"}
-        self._timer = context.window_manager.event_timer_add(0.2, window=context.window)
-        context.window_manager.modal_handler_add(self)
-        return {"RUNNING_MODAL"}
+        return {"RUNNING_MODAL"} if job.start_modal(self, context, self._work(context)) \
+            else {"CANCELLED"}
 
     def modal(self, context, event):
         if event.type == "ESC" and event.value == "PRESS":
@@ -188,8 +182,7 @@ class MICROMESH_OT_bake_maps(bpy.types.Operator):
         context.workspace.status_text_set(state.status_text())
         if not state.done:
             return {"PASS_THROUGH"}
-        context.window_manager.event_timer_remove(self._timer)
-        context.workspace.status_text_set(None)
+        job.end_modal(self, context)
         if state.cancelled or state.error:
             self.report({"WARNING"} if state.cancelled else {"ERROR"},
                         "Baking cancelled; nothing was changed" if state.cancelled
