@@ -15,9 +15,14 @@ import numpy as np
 import torch
 
 from .cameras import fibonacci_cameras
+from .construct.frame import device as torch_device
 from .mesh import TriMesh
+from .metrics import psnr
 from .micromesh import MicroMesh
+from .orient import orient
 from .render import rasterize, reference_images, render
+from .settings import preset, to_dict
+from .threads import default_threads
 
 # One colour per level 0..7, blue -> red (the N-panel's and the result object's colours).
 LEVEL_COLORS = np.array([[0.05, 0.10, 0.60], [0.05, 0.45, 0.80], [0.10, 0.70, 0.30],
@@ -36,16 +41,14 @@ ROWS = [("psnr", "PSNR (dB)", "{:.2f}"), ("shell_volume", "shell volume (unit sp
 SIZE = (1600, 1500)
 
 
-def make_report(result, reference: TriMesh, preset_name: str = "default"
+def make_report(result, reference: TriMesh, metrics: dict, preset_name: str = "default"
                 ) -> tuple[bytes, dict]:
     """(PNG bytes, JSON-ready dict) of a :class:`core.construct.ConstructResult` of
-    ``reference`` (caller's frame), its settings compared with ``preset_name``'s."""
-    from .orient import orient
-    from .settings import preset, to_dict
-
+    ``reference`` (caller's frame) with the run's ``metrics``, its settings compared with
+    ``preset_name``'s. The reference is wound as the construction saw it (``core.orient``)."""
     s = result.settings
-    ref_unit = TriMesh(result.normalization.apply(orient(reference).mesh.vertices),
-                       orient(reference).mesh.faces)
+    oriented = orient(reference).mesh
+    ref_unit = TriMesh(result.normalization.apply(oriented.vertices), oriented.faces)
     images = report_images(result.micromesh_unit, ref_unit, s.eval_views, 256, s.shading,
                            s.camera_radius, s.fov_y_deg)
     try:
@@ -53,18 +56,13 @@ def make_report(result, reference: TriMesh, preset_name: str = "default"
     except ValueError:
         base_settings = {}
     changed = {k: v for k, v in to_dict(s).items() if base_settings.get(k, v) != v}
-    metrics = dict(result.metrics)
     warnings = list(metrics.get("warnings", []))
     data = report_data(metrics, result.history or {}, result.micromesh.levels, changed,
                        preset_name, 12 * (reference.n_vertices + reference.n_faces),
                        result.timings or {}, warnings)
-    from .construct.frame import device as torch_device
-    from .threads import default_threads
-
     data["device"] = str(torch_device(s.device))
     data["threads"] = int(s.threads or default_threads())
-    data["images_psnr"] = [float(10 * np.log10(1 / max(((a - b) ** 2).mean(), 1e-20)))
-                           for a, b in zip(images["micromesh"], images["reference"])]
+    data["images_psnr"] = [psnr(a, b) for a, b in zip(images["micromesh"], images["reference"])]
     title = (f"{result.micromesh.base.n_faces:,} base triangles, "
              f"{metrics.get('micro_triangles', 0):,} micro-triangles, "
              f"PSNR {metrics.get('psnr', float('nan')):.2f} dB")

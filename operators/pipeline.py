@@ -73,8 +73,7 @@ def run(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
                   "projection" if method == "projection" else "optimize")
     if settings.compute_metrics:                  # the run report (core.report)
         progress({"phase": "report", "iteration": 0, "total": 1})
-        res.metrics = metrics
-        out.report_png, out.report = make_report(res, reference, preset_name)
+        out.report_png, out.report = make_report(res, reference, metrics, preset_name)
     return out
 
 

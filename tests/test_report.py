@@ -29,7 +29,7 @@ def optimised(scene):  # noqa: F811
 
 def test_report_picture_and_numbers(optimised):
     ref, res = optimised
-    png, data = make_report(res, ref, "fast")
+    png, data = make_report(res, ref, res.metrics, "fast")
     img = _png(png)
     assert img.shape[:2] == (SIZE[1], SIZE[0])
     # the level histogram's bars, one per level in use, in the levels' colours
@@ -60,6 +60,6 @@ def test_report_of_a_baseline_has_no_curves_and_says_its_warnings(scene):  # noq
 
     flipped = TriMesh(ref.vertices, np.where(mask[:, None], ref.faces[:, ::-1], ref.faces))
     res = staged_baseline(flipped, base, 1, small())
-    png, data = make_report(res, flipped)
+    png, data = make_report(res, flipped, res.metrics)
     assert data["history"]["iteration"] == [] and data["warnings"]
     assert _png(png).shape[:2] == (SIZE[1], SIZE[0])
