@@ -110,7 +110,8 @@ class Document:
             raise GltfError(f"{self.path.name}: GLB without a JSON chunk")
         return js
 
-    def _get(self, kind: str, i) -> dict:
+    def item(self, kind: str, i) -> dict:
+        """``doc[kind][i]``, refused with the reason when it does not exist."""
         items = self.doc.get(kind, [])
         if not isinstance(i, int) or not 0 <= i < len(items):
             raise GltfError(f"{self.path.name}: {kind}[{i}] does not exist")
@@ -118,7 +119,7 @@ class Document:
 
     def buffer(self, i: int) -> bytes:
         if i not in self._buffers:
-            b = self._get("buffers", i)
+            b = self.item("buffers", i)
             if "uri" not in b:
                 if self.glb_bin is None:
                     raise GltfError(f"{self.path.name}: buffer {i} has no uri and no GLB chunk")
@@ -140,7 +141,7 @@ class Document:
         return p.read_bytes()
 
     def view(self, i: int) -> bytes:
-        v = self._get("bufferViews", i)
+        v = self.item("bufferViews", i)
         buf = self.buffer(v.get("buffer", 0))
         off, n = v.get("byteOffset", 0), v.get("byteLength", 0)
         if off + n > len(buf):
@@ -149,7 +150,7 @@ class Document:
 
     def accessor(self, i: int) -> np.ndarray:
         """(count,) or (count, k) float64/int64 array, normalized integers scaled to [0, 1]."""
-        a = self._get("accessors", i)
+        a = self.item("accessors", i)
         if "sparse" in a or "bufferView" not in a:
             raise GltfError(f"{self.path.name}: accessor {i} is sparse or has no bufferView")
         dtype = np.dtype(COMPONENTS.get(a.get("componentType"), "V0"))
@@ -157,7 +158,7 @@ class Document:
         if dtype.itemsize == 0 or comps is None:
             raise GltfError(f"{self.path.name}: accessor {i} has an unknown type")
         view, count = self.view(a["bufferView"]), int(a.get("count", 0))
-        stride = self._get("bufferViews", a["bufferView"]).get("byteStride") or \
+        stride = self.item("bufferViews", a["bufferView"]).get("byteStride") or \
             dtype.itemsize * comps
         off = a.get("byteOffset", 0)
         if count and off + stride * (count - 1) + dtype.itemsize * comps > len(view):

@@ -39,12 +39,15 @@ class MicromeshFile:
     ptr: np.ndarray         # (nf+1,)
     values: np.ndarray
     warnings: list[str] = field(default_factory=list)
+    _micromesh: MicroMesh | None = field(default=None, repr=False)
 
     def micromesh(self) -> MicroMesh:
         """The file as a :class:`MicroMesh`: base P + D·bias, directions D·scale (bounds baked
         in, as micromesh-tools writes them), one value per micro-vertex. Shared-edge values that
         differ between the two triangles and flags that disagree with the levels are warned
-        about in ``warnings``."""
+        about in ``warnings`` (once: the micro-mesh is built on the first call)."""
+        if self._micromesh is not None:
+            return self._micromesh
         base = TriMesh(self.positions + self.directions * self.bias[:, None], self.faces)
         try:
             if not is_balanced(base, self.levels):
@@ -78,7 +81,8 @@ class MicromeshFile:
         if wrong:
             self.warnings.append(f"{wrong} triangles' edge flags disagree with their "
                                  "neighbours' levels; the flags implied by the levels are used")
-        return mm.with_displacements(d)
+        self._micromesh = mm.with_displacements(d)
+        return self._micromesh
 
 
 def is_micromesh_file(path: str | os.PathLike) -> bool:
@@ -141,11 +145,11 @@ def _primitives(doc: Document):
     stack = [(np.eye(4), n) for n in scenes[d.get("scene", 0)].get("nodes", [])]
     while stack:
         parent, i = stack.pop()
-        node = doc._get("nodes", i)
+        node = doc.item("nodes", i)
         m = np.asarray(node["matrix"], float).reshape(4, 4).T if "matrix" in node else _trs(node)
         world = parent @ m
         if "mesh" in node:
-            for prim in doc._get("meshes", node["mesh"]).get("primitives", []):
+            for prim in doc.item("meshes", node["mesh"]).get("primitives", []):
                 yield world, prim
         stack.extend((world, c) for c in node.get("children", []))
 
