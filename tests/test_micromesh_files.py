@@ -85,7 +85,7 @@ def test_bird_curve_payload_order_level2():
     # values = the u-major index: the bird-curve payload lists them in bird order
     base = TriMesh(np.eye(3), np.array([[0, 1, 2]]))
     mm = MicroMesh.flat(base, [2])
-    ptr, vals = mm.with_displacements(np.zeros(mm.n_vertices)).face_values("umajor")
+    ptr, _ = mm.face_values("umajor")
     umajor = np.arange(15) / 14.0
     payload, _, _, _ = encode_values(B.R32_SFLOAT, np.array([2]), ptr, umajor[np.argsort(
         bird_index(2))])
