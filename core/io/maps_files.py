@@ -60,8 +60,8 @@ def base_gltf(path: Path, mm: MicroMesh, maps: Maps, normal_uri: str, height_uri
                                     "heightMapMeaning": "signed distance along the "
                                     "interpolated vertex normals, world units"}}]
     doc["meshes"] = [{"name": path.stem, "primitives": [{
-        "attributes": {"POSITION": pos, "NORMAL": nrm, "TANGENT": tan, "TEXCOORD_0": uv}, "indices": idx,
-        "material": 0, "mode": 4}]}]
+        "attributes": {"POSITION": pos, "NORMAL": nrm, "TANGENT": tan, "TEXCOORD_0": uv},
+        "indices": idx, "material": 0, "mode": 4}]}]
     doc["nodes"] = [{"mesh": 0, "name": path.stem}]
     doc["scenes"], doc["scene"] = [{"nodes": [0]}], 0
     return [(path.with_suffix(".bin"), blob), (path, json.dumps(doc, indent=1).encode())]
