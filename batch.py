@@ -197,6 +197,7 @@ def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict
     from micromesh.operators import (bl_mesh, cameras_io, construct_op, pipeline, result_files,
                                      writeback)
 
+    from micromesh.cli.progress import PhaseProgress
     from micromesh.core.base import target_faces
 
     name = source.name
@@ -215,27 +216,18 @@ def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict
         coll = cameras_io.place_cameras(bpy.context.scene, reference, args.cameras,
                                         settings.camera_radius, settings.fov_y_deg)
         cams = cameras_io.collection_cameras(coll, settings.train_resolution)
-    last = [0.0, ""]
-
-    def progress(p):
-        get = p.get if isinstance(p, dict) else (lambda k, d=None: getattr(p, k, d))
-        phase, now = str(get("phase", "")), time.perf_counter()
-        if phase != last[1] or now - last[0] > 2.0:
-            last[:] = [now, phase]
-            it, ps = get("iteration", 0), get("psnr", None)
-            tot = get("total_iterations", None) or get("total", 0)
-            extra = f" PSNR {ps:.2f}" if isinstance(ps, (int, float)) and ps == ps else ""
-            print(f"[{name}] {phase} {it}/{tot}{extra} ({now - t0:.1f} s)", flush=True)
-
+    progress = PhaseProgress(name)
     interrupt.constructing = True
     try:
         outcome = pipeline.run(reference, base_tm, cams, settings, progress,
                                interrupt.should_stop, level=args.level, method=args.method,
                                preset_name=args.preset)
+        progress.close(complete=True)
     except pipeline.PipelineCancelled:
         raise KeyboardInterrupt from None
     finally:
         interrupt.constructing = False
+        progress.close()
     if interrupt.requested:
         raise KeyboardInterrupt
     m = outcome.metrics
@@ -252,6 +244,7 @@ def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict
     if args.maps:
         m["maps"] = result_files.write_maps(bpy.context, outcome, source, args.maps, out,
                                             progress)
+        progress.close(complete=True)
     m["total_time_s"] = time.perf_counter() - t0
     bpy.ops.wm.save_as_mainfile(filepath=str(out.temp(".blend")), compress=True)
     if args.export != "none":
@@ -289,14 +282,28 @@ def main(argv: list[str] | None = None) -> int:
     except BatchError as e:
         print(f"batch.py: error: {e}", file=sys.stderr, flush=True)
         return 2
+    rows: list = []
     try:
-        failures, crashes = run_all(pkg, args, settings, jobs, sets)
+        run_all(pkg, args, settings, jobs, sets, rows)
     except KeyboardInterrupt:
+        _print_table(rows, jobs, "interrupted")
         print("batch.py: interrupted", file=sys.stderr, flush=True)
         return 130
-    done = len(jobs) - failures - crashes
+    _print_table(rows, jobs, "")
+    done = sum(r.status == "done" for r in rows)
     print(f"done: {done}/{len(jobs)} in {time.perf_counter() - t_start:.1f} s", flush=True)
-    return 3 if crashes else 1 if failures else 0
+    statuses = {r.status for r in rows}
+    return 3 if "crashed" in statuses else 1 if "failed" in statuses else 0
+
+
+def _print_table(rows: list, jobs: list, rest: str) -> None:
+    """The final table; inputs not reached are listed as ``rest`` (when given)."""
+    from micromesh.cli.summary import Row, table
+
+    if rest:
+        rows = rows + [Row(p.name if p else "demo", rest) for p in jobs[len(rows):]]
+    if rows:
+        print(table(rows), flush=True)
 
 
 def check_usage(args: argparse.Namespace):
@@ -343,10 +350,13 @@ def check_usage(args: argparse.Namespace):
     return pkg, settings, inputs or [None], sets
 
 
-def run_all(pkg, args, settings, jobs: list, sets: list) -> tuple[int, int]:
+def run_all(pkg, args, settings, jobs: list, sets: list, rows: list) -> None:
     """Each input in a fresh scene, its files written as a set (removed again when it fails);
-    returns (failed inputs, internal errors). Ctrl-C raises KeyboardInterrupt."""
+    appends a :class:`cli.summary.Row` per input to ``rows``. Ctrl-C raises
+    KeyboardInterrupt."""
     import bpy
+
+    from micromesh.cli.summary import Row
 
     from micromesh.core.threads import set_threads
     from micromesh.operators import sources
@@ -356,7 +366,6 @@ def run_all(pkg, args, settings, jobs: list, sets: list) -> tuple[int, int]:
         from micromesh.operators import props
 
         props.register()
-    failures = crashes = 0
     interrupt = Interrupt()
     interrupt.install()
     for path, out in zip(jobs, sets):
@@ -372,15 +381,15 @@ def run_all(pkg, args, settings, jobs: list, sets: list) -> tuple[int, int]:
                 else:
                     source = sources.import_source(path)
                     source.name = out.name
-                process(bpy, pkg, source, args, settings, out, interrupt)
+                rows.append(Row(label, "done",
+                                process(bpy, pkg, source, args, settings, out, interrupt)))
         except (BatchError, ValueError) as e:
-            failures += 1
+            rows.append(Row(label, "failed"))
             print(f"batch.py: error: {label}: {e}", file=sys.stderr, flush=True)
         except Exception:
-            crashes += 1
+            rows.append(Row(label, "crashed"))
             print(f"batch.py: internal error on {label}:", file=sys.stderr, flush=True)
             traceback.print_exc()
-    return failures, crashes
 
 
 def _exit(code: int) -> None:

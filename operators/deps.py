@@ -24,6 +24,7 @@ REQUIREMENTS = {
     "embreex": "embreex==4.4.0.post1",
     "xatlas": "xatlas==0.0.11",
     "matplotlib": "matplotlib==3.10.8",
+    "tqdm": "tqdm==4.70.1",           # batch.py's progress bars (plain lines without it)
 }
 TORCH_CPU_INDEX = "https://download.pytorch.org/whl/cpu"
 # What the operators and panels need to import at all (the rest is checked when they run).
