@@ -11,7 +11,7 @@ import os
 import bpy
 from bpy.props import EnumProperty, IntProperty, StringProperty
 
-from .operators import deps
+from .operators import deps, install_op
 
 PACKAGE = __package__
 
@@ -48,30 +48,6 @@ def apply_threads() -> int:
     return set_threads(prefs.threads if prefs else 0)
 
 
-class MICROMESH_OT_install_dependencies(bpy.types.Operator):
-    """Install torch, scipy, numba and Embree into the extension's user folder with pip"""
-    bl_idname = "micromesh.install_dependencies"
-    bl_label = "Install Dependencies"
-
-    def execute(self, context):
-        if not bpy.app.online_access:
-            self.report({"ERROR"}, "Online access is disabled (Preferences > System > Network)")
-            return {"CANCELLED"}
-        r = deps.install()
-        if r.returncode != 0:
-            self.report({"ERROR"}, "pip failed: " + (r.stderr.strip().splitlines() or ["?"])[-1])
-            return {"CANCELLED"}
-        missing = deps.missing_modules()
-        if missing:
-            self.report({"WARNING"}, "Still missing: " + ", ".join(missing))
-            return {"FINISHED"}
-        from . import register_glue
-
-        register_glue()
-        self.report({"INFO"}, "Dependencies installed in " + deps.site_dir())
-        return {"FINISHED"}
-
-
 class MICROMESH_AP_preferences(bpy.types.AddonPreferences):
     bl_idname = PACKAGE
 
@@ -83,6 +59,11 @@ class MICROMESH_AP_preferences(bpy.types.AddonPreferences):
                          description="CPU threads for torch and numba (0: all usable cores)")
     cache_dir: StringProperty(name="Cache Folder", subtype="DIR_PATH", default="",
                               description="Where reports and caches go (empty: the extension's user folder)")
+    torch_build: EnumProperty(name="torch", default="CPU", items=[
+        ("CPU", "CPU build", "PyTorch's CPU build: about 190 MB to download, 750 MB installed"),
+        ("CUDA", "CUDA build", "The default PyPI build, with CUDA on Linux (NVIDIA GPUs): "
+                               "about 2.9 GB to download")],
+        description="Which torch Install Dependencies fetches")
 
     def draw(self, context):
         col = self.layout.column()
@@ -94,12 +75,26 @@ class MICROMESH_AP_preferences(bpy.types.AddonPreferences):
         if missing:
             box.label(text="Missing Python modules: " + ", ".join(missing), icon="ERROR")
             box.label(text="Target folder: " + deps.site_dir())
-            box.operator("micromesh.install_dependencies", icon="IMPORT")
         else:
             box.label(text="All Python dependencies found", icon="CHECKMARK")
+        running = install_op.draw_status(box)
+        if missing and not running:
+            box.prop(self, "torch_build")
+            box.operator("micromesh.install_dependencies", icon="IMPORT")
+            box.label(text="Log: " + deps.log_path())
 
 
-CLASSES = (MICROMESH_OT_install_dependencies, MICROMESH_AP_preferences)
+CLASSES = (MICROMESH_AP_preferences,)
 
 
-register, unregister = bpy.utils.register_classes_factory(CLASSES)
+_register, _unregister = bpy.utils.register_classes_factory(CLASSES)
+
+
+def register() -> None:
+    install_op.register()
+    _register()
+
+
+def unregister() -> None:
+    _unregister()
+    install_op.unregister()

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import importlib.util
 import os
-import subprocess
 import sys
 
 PACKAGE = __package__.rsplit(".", 1)[0]
@@ -39,6 +38,11 @@ def site_dir() -> str:
         return bpy.utils.extension_path_user(PACKAGE, path="site-packages", create=True)
     except (ValueError, RuntimeError):  # not loaded as an extension (scripts, tests)
         return os.path.join(os.path.dirname(os.path.dirname(__file__)), ".deps")
+
+
+def log_path() -> str:
+    """pip's whole output of the last install: ``install.log`` beside the dependency folder."""
+    return os.path.join(os.path.dirname(site_dir().rstrip(os.sep)), "install.log")
 
 
 def ensure_on_path() -> None:
@@ -69,12 +73,3 @@ def pip_command(target: str, modules: list[str] | None = None, cuda: bool = Fals
     if "torch" in mods and not cuda:
         cmd += ["--extra-index-url", TORCH_CPU_INDEX]
     return cmd
-
-
-def install(modules: list[str] | None = None, cuda: bool = False) -> subprocess.CompletedProcess:
-    """Install into :func:`site_dir` with Blender's Python (ensurepip first); blocking."""
-    subprocess.run([sys.executable, "-m", "ensurepip", "--upgrade"], capture_output=True)
-    r = subprocess.run(pip_command(site_dir(), modules, cuda), capture_output=True, text=True)
-    ensure_on_path()
-    importlib.invalidate_caches()
-    return r

@@ -25,13 +25,14 @@ class MICROMESH_PT_main(_Panel, bpy.types.Panel):
         col = self.layout.column(align=True)
         col.prop(s, "source")
         col.prop(s, "base")
-        from ..operators import deps
+        from ..operators import deps, install_op
 
         missing = deps.missing_modules()
         if missing:  # e.g. torch: projection works, the optimiser needs it
             box = self.layout.box()
             box.label(text="Missing: " + ", ".join(missing), icon="ERROR")
-            box.operator("micromesh.install_dependencies", icon="IMPORT")
+            if not install_op.draw_status(box):
+                box.operator("micromesh.install_dependencies", icon="IMPORT")
 
 
 class MICROMESH_PT_base(_Panel, bpy.types.Panel):

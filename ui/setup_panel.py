@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import bpy
 
-from ..operators import deps
+from ..operators import deps, install_op
 
 
 class MICROMESH_PT_setup(bpy.types.Panel):
@@ -20,7 +20,8 @@ class MICROMESH_PT_setup(bpy.types.Panel):
     def draw(self, context):
         box = self.layout.box()
         box.label(text="Missing: " + ", ".join(deps.missing_modules()), icon="ERROR")
-        box.operator("micromesh.install_dependencies", icon="IMPORT")
+        if not install_op.draw_status(box):
+            box.operator("micromesh.install_dependencies", icon="IMPORT")
 
 
 def register():

@@ -1,0 +1,154 @@
+"""Install Dependencies: pip in the background (``deps_install.Install``) while Blender stays
+responsive; progress in the preferences and the setup panel, Esc or Cancel stops it and leaves
+the dependency folder as it was. From a script or ``blender -b`` it runs to the end at once.
+"""
+from __future__ import annotations
+
+import bpy
+
+from . import deps
+from .deps_install import Install, InstallState
+
+_ACTIVE: Install | None = None
+_LAST: InstallState | None = None     # the last install's outcome, for the panels
+
+
+def status() -> tuple[InstallState | None, bool]:
+    """(the state to show, whether an install is running)."""
+    if _ACTIVE is not None:
+        return _ACTIVE.poll(), True
+    return _LAST, False
+
+
+def _prefs():
+    addon = bpy.context.preferences.addons.get(deps.PACKAGE)
+    return addon.preferences if addon else None
+
+
+def _start() -> Install:
+    global _ACTIVE, _LAST
+    prefs = _prefs()
+    cuda = bool(prefs and getattr(prefs, "torch_build", "CPU") == "CUDA")
+    _LAST = None
+    _ACTIVE = Install(lambda folder: deps.pip_command(folder, cuda=cuda), deps.site_dir(),
+                      deps.log_path(), cuda=cuda).start()
+    return _ACTIVE
+
+
+def _redraw() -> None:
+    for window in bpy.context.window_manager.windows:
+        for area in window.screen.areas:
+            if area.type in ("PREFERENCES", "VIEW_3D"):
+                area.tag_redraw()
+
+
+class MICROMESH_OT_install_dependencies(bpy.types.Operator):
+    """Install torch, scipy, numba, Embree, xatlas and matplotlib into the extension's user
+    folder with pip, in the background (Esc cancels)"""
+    bl_idname = "micromesh.install_dependencies"
+    bl_label = "Install Dependencies"
+
+    _timer = None
+
+    @classmethod
+    def poll(cls, context):
+        return _ACTIVE is None
+
+    def _refused(self) -> bool:
+        if not bpy.app.online_access:
+            self.report({"ERROR"}, "Online access is disabled (Preferences > System > Network)")
+            return True
+        return False
+
+    def execute(self, context):          # scripts and background mode: to the end, blocking
+        if self._refused():
+            return {"CANCELLED"}
+        _start().wait()
+        return self._finish(context)
+
+    def invoke(self, context, event):
+        if self._refused():
+            return {"CANCELLED"}
+        _start()
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.25, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC" and _ACTIVE is not None:
+            _ACTIVE.cancel()
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        _redraw()
+        if _ACTIVE is None or not _ACTIVE.poll().done:
+            return {"PASS_THROUGH"}
+        context.window_manager.event_timer_remove(self._timer)
+        return self._finish(context)
+
+    def _finish(self, context):
+        global _ACTIVE, _LAST
+        state = _ACTIVE.poll()
+        _ACTIVE, _LAST = None, state
+        _redraw()
+        if state.phase == "cancelled":
+            self.report({"WARNING"}, "Install Dependencies: " + state.message)
+            return {"CANCELLED"}
+        if state.phase != "finished":
+            self.report({"ERROR"}, "Install Dependencies failed: " + state.message)
+            return {"CANCELLED"}
+        deps.ensure_on_path()
+        missing = deps.missing_modules()
+        if missing:
+            self.report({"WARNING"}, "Still missing after the install: " + ", ".join(missing))
+            return {"FINISHED"}
+        from .. import register_glue
+
+        register_glue()
+        self.report({"INFO"}, state.message)
+        return {"FINISHED"}
+
+
+class MICROMESH_OT_cancel_install(bpy.types.Operator):
+    """Stop the running install; the dependency folder stays as it was"""
+    bl_idname = "micromesh.cancel_install"
+    bl_label = "Cancel Install"
+
+    @classmethod
+    def poll(cls, context):
+        return _ACTIVE is not None
+
+    def execute(self, context):
+        _ACTIVE.cancel()
+        return {"FINISHED"}
+
+
+def draw_status(layout) -> bool:
+    """The running install's progress (with Cancel) or the last one's outcome; True when an
+    install is running (then the caller offers no Install button)."""
+    state, running = status()
+    if state is None:
+        return False
+    if running:
+        layout.label(text=state.status_text(), icon="TIME")
+        layout.operator("micromesh.cancel_install", icon="CANCEL")
+        return True
+    icon = {"finished": "CHECKMARK", "cancelled": "INFO"}.get(state.phase, "ERROR")
+    for i, line in enumerate(_wrap(state.message, 70)):
+        layout.label(text=line, icon=icon if i == 0 else "BLANK1")
+    return False
+
+
+def _wrap(text: str, width: int) -> list[str]:
+    lines, cur = [], ""
+    for word in text.split():
+        if cur and len(cur) + 1 + len(word) > width:
+            lines.append(cur)
+            cur = word
+        else:
+            cur = f"{cur} {word}".strip()
+    return lines + ([cur] if cur else [])
+
+
+CLASSES = (MICROMESH_OT_install_dependencies, MICROMESH_OT_cancel_install)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)
