@@ -358,7 +358,7 @@ def run_all(pkg, args, settings, jobs: list, sets: list, rows: list) -> None:
 
     from micromesh.cli.summary import Row
 
-    from micromesh.core.threads import set_threads
+    from micromesh.core.runtime.threads import set_threads
     from micromesh.operators import sources
 
     set_threads(args.threads or settings.threads)

@@ -1,6 +1,6 @@
 """Add-on preferences: compute device, thread count, cache folder, optional dependencies.
 
-Threads go through ``core.threads.set_threads`` (the one place that pins torch's and numba's
+Threads go through ``core.runtime.threads.set_threads`` (the one place that pins torch's and numba's
 pools). The cache folder defaults to the extension's user folder
 (``bpy.utils.extension_path_user``), which Blender keeps across upgrades of the extension.
 """
@@ -42,7 +42,7 @@ def device() -> str:
 
 def apply_threads() -> int:
     """Pin the native pools to the preference's thread count (0: all cores); returns it."""
-    from .core.threads import set_threads
+    from .core.runtime.threads import set_threads
 
     prefs = get_prefs()
     return set_threads(prefs.threads if prefs else 0)

@@ -19,7 +19,7 @@ from _common import MESHES, icosphere, median_time, noisy_sphere, parser, print_
 from core import bake as bake_mod
 from core.bake import SOURCE_NEAREST, bake_displacements, nearest_points
 from core.mesh import TriMesh, unit_sphere_normalization
-from core.threads import set_threads
+from core.runtime.threads import set_threads
 
 
 def samples(base: TriMesh, n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:

@@ -23,7 +23,7 @@ from _common import MESHES, noisy_sphere, parser, print_table, timed, write_json
 from core.bake import closest_points_on_triangles
 from core.closest import ClosestPointIndex
 from core.mesh import TriMesh, unit_sphere_normalization
-from core.threads import set_threads
+from core.runtime.threads import set_threads
 
 
 class CKDTreeCandidates:

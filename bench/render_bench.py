@@ -11,7 +11,7 @@ locality like a micro-mesh's; the raw numbering is ~30 % slower to rasterise); t
 shaded render of the same sphere scaled by 1.01. Each configuration runs in its own child process so that ``peak_mb`` (the process's peak
 resident memory during one more forward + backward after the timed ones, sampled every 2 ms)
 is not polluted by the others. Like ``core.construct``, the child keeps large freed buffers in
-the heap (``core.memory``). Times are medians over ``--repeat`` runs after one warm-up run.
+the heap (``core.runtime.memory``). Times are medians over ``--repeat`` runs after one warm-up run.
 """
 from __future__ import annotations
 
@@ -98,7 +98,7 @@ def run_one(backend: str, device: str, triangles: int, res: int, views: int, rep
     import torch
 
     from core.cameras import fibonacci_cameras
-    from core.memory import keep_large_allocations
+    from core.runtime.memory import keep_large_allocations
     from core.render import rasterize, reference_images, render_loss
 
     keep_large_allocations()  # as core.construct runs the renderer
@@ -150,7 +150,7 @@ def main() -> None:
                    help="also time each stage of the numba iteration alone (second table)")
     p.add_argument("--child", help=argparse_suppress())
     a = p.parse_args()
-    from core.threads import set_threads
+    from core.runtime.threads import set_threads
 
     threads = set_threads(a.threads or None)
     if a.child:

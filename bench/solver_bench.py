@@ -16,7 +16,7 @@ import scipy.sparse.linalg as spla
 
 from _common import icosphere_with_vertices, median_time, parser, print_table, timed, write_json
 from core.laplacian import ScreenedSolver, uniform_laplacian
-from core.threads import set_threads
+from core.runtime.threads import set_threads
 
 
 def main() -> None:

@@ -21,7 +21,7 @@ import numpy as np
 
 from .checks import as_points, per_point_distance
 from .mesh import TriMesh
-from .threads import default_threads
+from .runtime.threads import default_threads
 
 SOURCE_POSITIVE = 0   # ray hit along +direction
 SOURCE_NEGATIVE = 1   # ray hit along −direction
@@ -97,7 +97,7 @@ def nearest_points(points: np.ndarray, reference: TriMesh, *,
     """Exact nearest surface point of ``reference`` for each point: (points (n,3), face, distance).
 
     A BVH query (:mod:`core.closest`, built once per reference and cached); ``workers``: numba
-    threads for this call (default: the pool's setting, see ``core.threads.set_threads``).
+    threads for this call (default: the pool's setting, see ``core.runtime.threads.set_threads``).
     """
     from .closest import closest_point_index  # compiled kernels: imported on first use
 

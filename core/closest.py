@@ -21,7 +21,7 @@ import numpy as np
 from numba import prange
 
 from .checks import as_points, per_point_distance
-from .jit import kernel
+from .runtime.jit import kernel
 from .mesh import TriMesh
 
 LEAF_SIZE = 4
@@ -278,7 +278,7 @@ class ClosestPointIndex:
     """BVH over a triangle mesh for exact closest-point queries; build once, query often.
 
     ``vertices`` (n, 3) float, ``faces`` (m, 3) int. Degenerate triangles are allowed (they act
-    as segments or points). Queries run on numba's thread pool (``core.threads.set_threads``).
+    as segments or points). Queries run on numba's thread pool (``core.runtime.threads.set_threads``).
     """
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray) -> None:

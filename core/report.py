@@ -22,7 +22,7 @@ from .micromesh import MicroMesh
 from .orient import orient
 from .render import rasterize, reference_images, render
 from .settings import preset, to_dict
-from .threads import default_threads
+from .runtime.threads import default_threads
 
 # One colour per level 0..7, blue -> red (the N-panel's and the result object's colours).
 LEVEL_COLORS = np.array([[0.05, 0.10, 0.60], [0.05, 0.45, 0.80], [0.10, 0.70, 0.30],

@@ -30,7 +30,7 @@ class ConstructSettings:
     preset: str = "default"
     device: str = "auto"             # "cpu", "cuda", "auto"
     seed: int = 0
-    threads: int = 0                 # 0: all usable cores (core.threads.set_threads)
+    threads: int = 0                 # 0: all usable cores (core.runtime.threads.set_threads)
 
     # schedule
     iterations: int = 400

@@ -112,7 +112,7 @@ def test_shell_terms_gradients_do_not_depend_on_memory_layout():
     from core.mesh import TriMesh
     from core.micromesh import MicroMesh
     from core.primitives import icosphere
-    from core.threads import default_threads, set_threads
+    from core.runtime.threads import default_threads, set_threads
 
     v, f = icosphere(4)
     mm = MicroMesh.flat(TriMesh(v, f), np.full(len(f), 3))

@@ -1,4 +1,4 @@
-"""core.memory: with the heap policy on, a freed image-sized array is reused without page
+"""core.runtime.memory: with the heap policy on, a freed image-sized array is reused without page
 faults, and release_memory hands the free heap back (glibc only; fresh processes, since the
 policy is process-wide)."""
 import subprocess
@@ -7,14 +7,14 @@ from pathlib import Path
 
 import pytest
 
-from core.memory import _glibc
+from core.runtime.memory import _glibc
 
 ROOT = Path(__file__).resolve().parents[1]
 
 SCRIPT = """
 import resource, sys
 import numpy as np
-from core.memory import keep_large_allocations, release_memory
+from core.runtime.memory import keep_large_allocations, release_memory
 
 def faults_of_fill():
     before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt

@@ -9,7 +9,7 @@ import torch
 
 from core.cameras import Cameras, fibonacci_cameras, look_at, perspective
 from core.render import pixel_error, rasterize, render, render_loss
-from core.threads import set_threads
+from core.runtime.threads import set_threads
 from tests.test_render import icosphere, tensors
 
 BACKENDS = ["numba", "torch"]

@@ -8,7 +8,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 SCRIPT = """
 import numpy as np, numba, torch
-from core.threads import set_threads
+from core.runtime.threads import set_threads
 from core.render import warm_up
 assert set_threads(1) == 1
 warm_up(torch.device("cpu"), antialias=True)      # runs parallel numba kernels

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit import kernel
+from ..runtime.jit import kernel
 from .links import compact_list
 
 RING = 4096          # neighbour buffer size (valences above it are truncated in pushes)

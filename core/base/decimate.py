@@ -12,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..jit import kernel
+from ..runtime.jit import kernel
 from ..mesh import TriMesh
 from . import heap
 from .collapse import (RING, STATUS_EXHAUSTED, STATUS_GROW, STATUS_STEPS, STATUS_TARGET,

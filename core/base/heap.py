@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit import kernel
+from ..runtime.jit import kernel
 
 
 def new_heap(capacity: int) -> tuple[np.ndarray, np.ndarray]:

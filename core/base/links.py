@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit import kernel
+from ..runtime.jit import kernel
 
 
 @kernel(cache=True)

@@ -13,7 +13,7 @@ from ..mesh import TriMesh, unit_sphere_normalization
 from ..metrics import PhaseTimer
 from ..micromesh import MicroMesh
 from ..settings import ConstructSettings, preset
-from ..threads import set_threads
+from ..runtime.threads import set_threads
 from .evaluate import evaluate
 from .frame import (check_inputs, check_reference, oriented_reference, prepare_base,
                     to_caller_frame)

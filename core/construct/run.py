@@ -18,12 +18,12 @@ import torch
 from ..cameras import Cameras
 from ..lod import effective_micro_triangles
 from ..losses import mean_edge_length
-from ..memory import keep_large_allocations, release_memory
+from ..runtime.memory import keep_large_allocations, release_memory
 from ..mesh import TriMesh, unit_sphere_normalization
 from ..micromesh import MicroMesh
 from ..render import warm_up
 from ..settings import ConstructSettings
-from ..threads import set_threads
+from ..runtime.threads import set_threads
 from .finalise import finalise
 from .frame import (check_inputs, check_reference, device as torch_device, fixed_levels,
                     oriented_reference, prepare_base, unit_cameras)
@@ -56,7 +56,7 @@ def construct(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
     are the input's); displacements start from projection baking at those levels and are
     optimised as usual (reparameterisation, L_sv, rendering loss) within the settings' budget.
 
-    Large freed buffers stay in the heap while it runs (``core.memory``; the policy stays set
+    Large freed buffers stay in the heap while it runs (``core.runtime.memory``; the policy stays set
     for the process) and the free heap goes back to the OS when it returns.
     """
     keep_large_allocations()

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ..jit import kernel
+from ..runtime.jit import kernel
 from .prefetch import ahead
 from .shade import add_vertex_grad, clip_xyw
 

@@ -12,7 +12,7 @@ import numpy as np
 import torch
 from numba import prange
 
-from ..jit import kernel
+from ..runtime.jit import kernel
 from .geometry import NORMAL_EPS
 from .topology import vertex_corners
 

@@ -19,7 +19,7 @@ import numpy as np
 import torch
 from numba import njit, prange
 
-from ..jit import kernel
+from ..runtime.jit import kernel
 from .prefetch import FACE_AHEAD, prefetch
 from .topology import face_neighbours_int32, faces_int32
 

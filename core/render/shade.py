@@ -17,7 +17,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..jit import kernel
+from ..runtime.jit import kernel
 from .geometry import NORMAL_EPS
 from .prefetch import ahead
 

@@ -1,0 +1,2 @@
+"""How the core runs: compiled kernels and their cache (``jit``), thread pools (``threads``),
+memory (``memory``)."""
