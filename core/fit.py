@@ -137,12 +137,19 @@ def _areas(X: np.ndarray, T: np.ndarray) -> np.ndarray:
     return 0.5 * np.linalg.norm(np.cross(X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]]), axis=1)
 
 
-def face_residuals(mm: MicroMesh, samples) -> np.ndarray:
-    """(nf,) per base face, the weighted squared distance of the reference samples (of
-    :func:`reference_samples`) whose nearest micro-surface point lies on that face: where the
-    fitted micro-mesh still misses the reference."""
-    pts, _, weights = samples
+def surface_errors(mm: MicroMesh, samples) -> tuple[np.ndarray, np.ndarray]:
+    """(distance, normal) per base face (nf,) of the reference samples (of
+    :func:`reference_samples`) whose nearest micro-surface point lies on that face: the
+    weighted squared distance, and the weighted squared difference between the sample's normal
+    and the micro-triangle's (what shading sees). Where the fitted micro-mesh still misses the
+    reference."""
+    pts, normals, weights = samples
     tess = mm.tessellate()
-    _, tri, dist = ClosestPointIndex(tess.vertices, tess.triangles).query(pts)
-    return np.bincount(tess.triangle_face[tri], weights=weights * dist ** 2,
-                       minlength=mm.base.n_faces)
+    V, T = tess.vertices, tess.triangles
+    _, tri, dist = ClosestPointIndex(V, T).query(pts)
+    tn = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
+    tn /= np.maximum(np.linalg.norm(tn, axis=1, keepdims=True), 1e-300)
+    face = tess.triangle_face[tri]
+    nf = mm.base.n_faces
+    return (np.bincount(face, weights=weights * dist ** 2, minlength=nf),
+            np.bincount(face, weights=weights * ((tn[tri] - normals) ** 2).sum(1), minlength=nf))

@@ -319,3 +319,46 @@ def test_residual_exchange_moves_levels_to_where_the_fit_misses():
     assert (new[hot] == 3).all() and (new < 2).any()
     run.s = preset("default", residual_lod=0.0)
     np.testing.assert_array_equal(residual_exchange(run, levels, E), levels)
+
+
+@pytest.mark.parametrize("hot_cap", [False, True])
+def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, monkeypatch):
+    """finalise.fitted: the levels residual_exchange moves are fitted again and kept only when
+    the shading error of the same reference samples falls; otherwise the first fit stays.
+    Detail on one cap of a sphere: moving levels there helps (kept). Moving levels onto a
+    smooth cap while the detailed one loses them hurts (refused)."""
+    from types import SimpleNamespace
+
+    import core.construct.finalise as fin
+    from core.fit import fit_samples, surface_errors
+    from core.lod import effective_micro_triangles
+    from core.metrics import PhaseTimer
+    from core.micromesh import MicroMesh
+
+    v, f = icosphere(2)
+    base = TriMesh(v, f)
+    rv, rf = icosphere(5)
+    bumps = 1 + 0.03 * np.sin(40 * rv[:, 0]) * np.sin(40 * rv[:, 1]) * (rv[:, 2] > 0.3)
+    ref = TriMesh(rv * bumps[:, None], rf)
+    levels = np.full(base.n_faces, 2)
+    mm = MicroMesh.flat(base, levels)
+    cost = lambda lv: effective_micro_triangles(lv, base.face_adjacency)  # noqa: E731
+    run = SimpleNamespace(s=preset("default"), base=base, cost=cost, budget=cost(levels),
+                          fixed=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
+                          notes={}, check_stop=lambda: None)
+    z = base.vertices[base.faces].mean(1)[:, 2]
+    if hot_cap:       # the exchange as it should go: up where the detail is
+        up, down = z > 0.5, z < -0.5
+    else:             # the wrong way round: up on the smooth cap, down on the detail
+        up, down = z < -0.5, z > 0.5
+    wanted = np.where(up, 3, np.where(down, 1, levels))
+    monkeypatch.setattr(fin, "residual_exchange", lambda run, lv, E: wanted)
+    out = fin.fitted(run, mm)
+    note = run.notes["residual_lod"]
+    assert note["kept"] is hot_cap
+    assert (note["shading_error_after"] < note["shading_error_before"]) is hot_cap
+    np.testing.assert_array_equal(out.levels, wanted if hot_cap else levels)
+    samples = fit_samples(mm, ref)
+    first = surface_errors(fin.fitted(SimpleNamespace(**{**vars(run), "cost": None}), mm),
+                           samples)[1].sum()
+    assert surface_errors(out, samples)[1].sum() <= first * (1 + 1e-9)  # never worse

@@ -1,6 +1,7 @@
 """The end of a construction: final levels, balance, the least-squares fit of the
 displacements (``core.fit``), levels moved to where the fit still misses the reference and
-fitted again (``choose_levels.residual_exchange``), tight bounds folded into the base and the
+fitted again (``choose_levels.residual_exchange``; kept only where that lowers the shading
+error), tight bounds folded into the base and the
 directions (what a file holds: ``core.bounds.baked``), metrics, and the result in the
 caller's frame."""
 from __future__ import annotations
@@ -11,8 +12,9 @@ import numpy as np
 
 from ..bounds import baked, tight_bounds, unit_bounds
 from ..mesh import TriMesh
+from ..micromesh import MicroMesh
 from ..microtopology import balance_levels
-from ..fit import face_residuals, fit_displacements, fit_samples
+from ..fit import fit_displacements, fit_samples, surface_errors
 from .choose_levels import final_levels, residual_exchange
 from .evaluate import evaluate
 from .frame import to_caller_frame
@@ -30,20 +32,7 @@ def finalise(run: RunState, params: Parameters, reference: TriMesh, base: TriMes
         mm = mm.with_levels(balance_levels(run.base, mm.levels))
     if run.s.final_fit:
         run.check_stop()
-        with run.timer.phase("fit"):
-            samples = fit_samples(mm, run.scene.ref)
-            mm = mm.with_displacements(fit_displacements(mm, run.scene.ref,
-                                                         run.s.fit_smoothness, samples=samples))
-        if run.s.residual_lod > 0 and run.fixed is None and run.cost is not None:
-            run.check_stop()
-            with run.timer.phase("residual_lod"):
-                new = residual_exchange(run, mm.levels, face_residuals(mm, samples))
-            if not np.array_equal(new, mm.levels):
-                with run.timer.phase("fit"):
-                    mm = mm.with_levels(new)
-                    mm = mm.with_displacements(fit_displacements(
-                        mm, run.scene.ref, run.s.fit_smoothness, samples=fit_samples(
-                            mm, run.scene.ref)))
+        mm = fitted(run, mm)
     with run.timer.phase("finalize"):
         bounds = tight_bounds(mm)
         if run.s.fold_bounds and run.fixed is None:  # what a file holds (not: a frozen base)
@@ -59,5 +48,40 @@ def finalise(run: RunState, params: Parameters, reference: TriMesh, base: TriMes
     out, b = to_caller_frame(mm, bounds, run.norm)
     if run.fixed is not None:        # the base was frozen: hand back the caller's vertices
         out = out.with_base_positions(np.asarray(base.vertices, dtype=np.float64))
+    metrics.update(run.notes)
     return ConstructResult(out, b, run.gains, metrics, dict(run.timer.times), run.history,
                            run.s, run.norm, mm)
+
+
+def fitted(run: RunState, mm: MicroMesh) -> MicroMesh:
+    """``mm`` with its displacements fitted to the reference (``core.fit``); then, with a
+    budget, levels moved to where the fit still misses it and fitted again. The moved levels
+    are kept only where they lower the shading error (squared normal differences) of the same
+    reference samples: where the residual model misjudges a mesh (smooth ones, whose residual
+    falls faster than it assumes), the first fit stays. ``run.notes["residual_lod"]`` says
+    what happened."""
+    ref = run.scene.ref
+    with run.timer.phase("fit"):
+        samples = fit_samples(mm, ref)
+        mm = mm.with_displacements(fit_displacements(mm, ref, run.s.fit_smoothness,
+                                                     samples=samples))
+    if not (run.s.residual_lod > 0 and run.fixed is None and run.cost is not None):
+        return mm
+    run.check_stop()
+    with run.timer.phase("residual_lod"):
+        dist, normal = surface_errors(mm, samples)
+        new = residual_exchange(run, mm.levels, dist)
+    if np.array_equal(new, mm.levels):
+        return mm
+    with run.timer.phase("fit"):
+        moved = mm.with_levels(new)
+        moved = moved.with_displacements(fit_displacements(
+            moved, ref, run.s.fit_smoothness, samples=fit_samples(moved, ref)))
+    with run.timer.phase("residual_lod"):
+        after = surface_errors(moved, samples)[1].sum()
+    keep = bool(after < normal.sum())
+    run.notes["residual_lod"] = {"faces_up": int((new > mm.levels).sum()),
+                                 "faces_down": int((new < mm.levels).sum()), "kept": keep,
+                                 "shading_error_before": float(normal.sum()),
+                                 "shading_error_after": float(after)}
+    return moved if keep else mm

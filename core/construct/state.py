@@ -33,7 +33,8 @@ class RunState:
 
     ``level``: the level the schedule has reached; ``gains``: per level, the per-face
     relative gain that level brought; ``last_errors``: the per-face image errors measured at
-    the last subdivision; ``fixed``: the artist's levels (then no schedule, no LOD).
+    the last subdivision; ``fixed``: the artist's levels (then no schedule, no LOD);
+    ``notes``: what the run decided on the way (e.g. ``residual_lod``), for the metrics.
     """
 
     s: ConstructSettings
@@ -53,6 +54,7 @@ class RunState:
                                                    "psnr": [], "events": []})
     gains: dict = field(default_factory=dict)
     last_errors: np.ndarray | None = None
+    notes: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.cost, self.budget = budget_cost(self.s, self.base, self.reference_faces)
