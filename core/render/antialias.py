@@ -98,6 +98,17 @@ def _pair_code(verts, faces, nbr, m, tb, db, fb, ra, ca, rb, cb, vertical, width
         fixed, p0 = ca + 0.5, ra + 0.5
     else:
         fixed, p0 = ra + 0.5, ca + 0.5
+    return _edge_code(verts, faces, nbr, m, cur, bits, walk, near_a, vertical, fixed, p0,
+                      width, height)
+
+
+@njit
+def _edge_code(verts, faces, nbr, m, cur, bits, walk, near_a, vertical, fixed, p0, width,
+               height):
+    """The rest of :func:`_pair_code` for the few pairs that may cross a silhouette: the exit
+    edge of the occluding face and the walk to the silhouette. A call of its own (not
+    inlined): compiled once instead of at both call sites of ``pair_codes``, which took most
+    of the first run's compile time."""
     sx0, sy0, sx1, sy1, sx2, sy2, ok = _face_screen(verts, faces, m, cur, width, height)
     if not ok:
         return -1
