@@ -15,7 +15,7 @@ from bpy.props import EnumProperty
 
 from ..core.outcome import Outcome
 from ..core.settings import SettingsError, apply_overrides, preset
-from . import base_ops, bl_mesh, cameras_io, job, pipeline, writeback
+from . import base_ops, bl_mesh, cameras_io, job, pipeline, warmup, writeback
 
 
 @dataclass
@@ -89,6 +89,7 @@ def _work(reference, base, cams, settings, levels, level, method, preset_name, p
           should_stop):
     from .. import preferences  # noqa: F401  (threads are pinned in the main thread)
 
+    warmup.wait(progress, should_stop)     # a first run: the kernels are being compiled
     return pipeline.run(reference, base, cams, settings, progress, should_stop,
                         levels=levels, level=level, method=method, preset_name=preset_name)
 

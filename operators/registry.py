@@ -4,7 +4,7 @@ from __future__ import annotations
 import bpy
 from bpy.app.handlers import persistent
 
-from . import base_ops, construct_op, deps, files_op, job, maps_op, misc_ops, props
+from . import base_ops, construct_op, deps, files_op, job, maps_op, misc_ops, props, warmup
 
 CLASSES = (*base_ops.CLASSES, *construct_op.CLASSES, *misc_ops.CLASSES, *files_op.CLASSES,
            *maps_op.CLASSES)
@@ -27,6 +27,8 @@ def register():
     for menu, draw in files_op.MENUS:
         menu.append(draw)
     bpy.app.handlers.load_pre.append(_stop_on_load)
+    atexit.register(warmup.stop)
+    warmup.start()            # interactive Blender: compile the kernels before a first Construct
 
 
 def unregister():
@@ -34,6 +36,8 @@ def unregister():
 
     job.stop_active()
     atexit.unregister(job.stop_active)
+    warmup.stop()
+    atexit.unregister(warmup.stop)
     if _stop_on_load in bpy.app.handlers.load_pre:
         bpy.app.handlers.load_pre.remove(_stop_on_load)
     for menu, draw in files_op.MENUS:

@@ -111,3 +111,30 @@ def test_stop_active_joins_the_worker():
     assert job.stop_active(timeout=5)
     assert not j.alive
     assert not job.stop_active()
+
+
+def test_construct_waits_for_the_warm_up_process():
+    """operators/warmup.wait: while the kernel warm-up process runs, a construction reports
+    "compiling kernels" and waits; a stop request ends the wait; no process: no wait."""
+    import subprocess
+    import sys
+
+    from micromesh.operators import warmup
+
+    seen = []
+    warmup._PROC = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(1.5)"])
+    try:
+        t = time.monotonic()
+        warmup.wait(seen.append, lambda: False)
+        assert time.monotonic() - t > 1.0 and not warmup.running()
+        assert seen and seen[0]["phase"] == "compiling kernels"
+        warmup._PROC = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+        t = time.monotonic()
+        warmup.wait(seen.append, lambda: time.monotonic() - t > 0.5)
+        assert time.monotonic() - t < 5 and warmup.running()
+    finally:
+        warmup.stop()
+    assert not warmup.running()
+    seen.clear()
+    warmup.wait(seen.append, lambda: False)
+    assert seen == []

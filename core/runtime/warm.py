@@ -1,0 +1,81 @@
+"""Compiling the kernels before they are needed (ahead of a first construction).
+
+numba compiles a kernel at its first call and keeps it in its on-disk cache (``jit``); a first
+construction on a fresh install pays for all of them before its first iteration. :func:`warm`
+runs a tiny construction with the default preset, which calls every kernel a default
+construction calls (base builder, closest points, baking, renderer forward and backward,
+metrics), so they are compiled and cached; :func:`is_warm` says whether that is done for this
+source and this import name. :func:`command` is the command line that does it in a process
+of its own (the add-on starts it in the background when it is enabled).
+
+numba keys each cache entry by the CPU it was compiled for (target triple, CPU name and
+features): an entry compiled on another machine is never served, it is compiled again.
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+import time
+from typing import Callable
+
+# Its index file exists once the kernels are cached: the last kernel a construction compiles
+_SENTINEL = ("render.antialias", "pair_codes")
+
+
+def warm(progress: Callable[[str], None] | None = None) -> float:
+    """Compile (or load from the cache) the kernels of a default construction; seconds taken."""
+    import numpy as np
+
+    from ..construct import construct, preset
+    from ..mesh import TriMesh
+    from ..primitives import icosphere
+
+    t = time.perf_counter()
+    v, f = icosphere(3)
+    v = v * (1.0 + 0.05 * np.sin(9.0 * v[:, :1]) * np.sin(7.0 * v[:, 1:2]))
+    settings = preset("default", iterations=12, subdivide_at=(2, 4, 6, 8), train_resolution=32,
+                      eval_resolution=32, eval_views=2, n_views=4, views_per_iter=2)
+    report = (lambda p: progress(str(p.phase))) if progress else None
+    construct(TriMesh(v, f), None, None, settings, progress=report)
+    return time.perf_counter() - t
+
+
+def is_warm() -> bool:
+    """Whether the sentinel kernel's cache holds an entry compiled for this CPU, for this
+    source and this import name."""
+    package = __name__.rsplit(".", 2)[0]                 # <...>.core
+    module = importlib.import_module(f"{package}.{_SENTINEL[0]}")
+    cache = getattr(getattr(module, _SENTINEL[1]), "_cache", None)
+    try:
+        from numba.core.registry import cpu_target
+
+        magic = cpu_target.target_context.codegen().magic_tuple()
+        index = cache._cache_file._load_index()           # {(signature, cpu, ...): file}
+    except Exception:  # noqa: BLE001  (no cache, or numba's internals moved: not warm)
+        return False
+    return any(key[1] == magic for key in index)
+
+
+def command(package_root: str, package_name: str, extra_paths: list[str],
+            action: str = "warm") -> list[str]:
+    """A command line that imports the package at ``package_root`` as ``package_name`` (so
+    the cache entries carry the caller's import name) and, where the kernels are not cached
+    for this CPU yet, warms them (``action`` "warm", at a low priority); "is_warm" only says
+    whether they are. ``extra_paths`` go first on ``sys.path`` (the dependency folder)."""
+    code = ("import importlib, importlib.util, os, sys\n"
+            "root, name, action = sys.argv[1:4]\n"
+            "sys.path[:0] = sys.argv[4:]\n"
+            "parts = name.split('.')\n"
+            "for i in range(1, len(parts)):   # empty parents (Blender's bl_ext.<repo>)\n"
+            "    p = sys.modules.setdefault('.'.join(parts[:i]), type(sys)('.'.join(parts[:i])))\n"
+            "    p.__path__ = getattr(p, '__path__', [])\n"
+            "spec = importlib.util.spec_from_file_location(name, os.path.join(root, "
+            "'__init__.py'), submodule_search_locations=[root])\n"
+            "m = importlib.util.module_from_spec(spec); sys.modules[name] = m\n"
+            "spec.loader.exec_module(m)\n"
+            "w = importlib.import_module(name + '.core.runtime.warm')\n"
+            "if w.is_warm() or action == 'is_warm':\n"
+            "    print('warm: kernels cached:', w.is_warm(), flush=True); sys.exit(0)\n"
+            "if hasattr(os, 'nice'): os.nice(10)\n"
+            "print('warm: kernels ready in %.1f s' % w.warm(), flush=True)\n")
+    return [sys.executable, "-c", code, package_root, package_name, action, *extra_paths]
