@@ -77,11 +77,7 @@ class MICROMESH_AP_preferences(bpy.types.AddonPreferences):
             box.label(text="Target folder: " + deps.site_dir())
         else:
             box.label(text="All Python dependencies found", icon="CHECKMARK")
-        running = install_op.draw_status(box)
-        if missing and not running:
-            box.prop(self, "torch_build")
-            box.operator("micromesh.install_dependencies", icon="IMPORT")
-            box.label(text="Log: " + deps.log_path())
+        install_op.draw_install(box, self, offer=bool(missing))
 
 
 CLASSES = (MICROMESH_AP_preferences,)

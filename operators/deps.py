@@ -15,15 +15,19 @@ import sys
 
 PACKAGE = __package__.rsplit(".", 1)[0]
 
-# What the core imports, with the pins of requirements.txt (CPU torch from PyTorch's index).
+# What the core imports, with the pins of requirements.txt (CPU torch from PyTorch's index);
+# per-platform pins as environment markers (``platforms.py``: which platforms, and why not).
+_MAC_14 = 'platform_release >= "23"'         # Darwin 23: macOS 14
 REQUIREMENTS = {
-    "scipy": "scipy==1.17.1",
-    "torch": "torch==2.13.0",
-    "numba": "numba==0.68.1",
-    "embreex": "embreex==4.4.0.post1",
-    "xatlas": "xatlas==0.0.11",
-    "matplotlib": "matplotlib==3.10.8",
-    "tqdm": "tqdm==4.70.1",           # batch.py's progress bars (plain lines without it)
+    "scipy": ("scipy==1.17.1",),
+    "torch": (f'torch==2.13.0; sys_platform != "darwin" or {_MAC_14}',
+              'torch==2.11.0; sys_platform == "darwin" and platform_release < "23"'),
+    # (torch 2.13 needs macOS 14 on Apple silicon; 2.11 is the last with macOS 13 wheels)
+    "numba": ("numba==0.68.1",),
+    "embreex": ("embreex==4.4.0.post1",),
+    "xatlas": ("xatlas==0.0.11",),
+    "matplotlib": ("matplotlib==3.10.8",),
+    "tqdm": ("tqdm==4.70.1",),          # batch.py's progress bars (plain lines without it)
 }
 TORCH_CPU_INDEX = "https://download.pytorch.org/whl/cpu"
 # What the operators and panels need to import at all (the rest is checked when they run).
@@ -69,7 +73,7 @@ def pip_command(target: str, modules: list[str] | None = None, cuda: bool = Fals
     """The pip command that installs the missing (or given) modules into ``target``."""
     mods = [m for m in (modules if modules is not None else missing_modules()) if m in REQUIREMENTS]
     cmd = [sys.executable, "-m", "pip", "install", "--disable-pip-version-check",
-           "--target", target, "numpy<2"] + [REQUIREMENTS[m] for m in mods]
+           "--target", target, "numpy<2"] + [r for m in mods for r in REQUIREMENTS[m]]
     if "torch" in mods and not cuda:
         cmd += ["--extra-index-url", TORCH_CPU_INDEX]
     return cmd

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import bpy
 
-from . import deps
+from . import deps, platforms
 from .deps_install import Install, InstallState
 
 _ACTIVE: Install | None = None
@@ -123,20 +123,31 @@ class MICROMESH_OT_cancel_install(bpy.types.Operator):
         return {"FINISHED"}
 
 
-def draw_status(layout) -> bool:
-    """The running install's progress (with Cancel) or the last one's outcome; True when an
-    install is running (then the caller offers no Install button)."""
+def draw_install(layout, prefs=None, offer: bool = True) -> None:
+    """Install Dependencies where it can work: the running install's progress (with Cancel)
+    or the last one's outcome, then (``offer``) the button (with ``prefs``: the torch build to
+    fetch and the log's path); on a platform without wheels, why not, instead of the button."""
+    here = platforms.current()
+    if offer and here is not None and not here.supported:
+        for i, line in enumerate(_wrap(f"{here.name} is not supported: {here.blocker}", 70)):
+            layout.label(text=line, icon="ERROR" if i == 0 else "BLANK1")
+        return
     state, running = status()
-    if state is None:
-        return False
     if running:
         layout.label(text=state.status_text(), icon="TIME")
         layout.operator("micromesh.cancel_install", icon="CANCEL")
-        return True
-    icon = {"finished": "CHECKMARK", "cancelled": "INFO"}.get(state.phase, "ERROR")
-    for i, line in enumerate(_wrap(state.message, 70)):
-        layout.label(text=line, icon=icon if i == 0 else "BLANK1")
-    return False
+        return
+    if state is not None:
+        icon = {"finished": "CHECKMARK", "cancelled": "INFO"}.get(state.phase, "ERROR")
+        for i, line in enumerate(_wrap(state.message, 70)):
+            layout.label(text=line, icon=icon if i == 0 else "BLANK1")
+    if not offer:
+        return
+    if prefs is not None:
+        layout.prop(prefs, "torch_build")
+    layout.operator("micromesh.install_dependencies", icon="IMPORT")
+    if prefs is not None:
+        layout.label(text="Log: " + deps.log_path())
 
 
 def _wrap(text: str, width: int) -> list[str]:

@@ -31,8 +31,7 @@ class MICROMESH_PT_main(_Panel, bpy.types.Panel):
         if missing:  # e.g. torch: projection works, the optimiser needs it
             box = self.layout.box()
             box.label(text="Missing: " + ", ".join(missing), icon="ERROR")
-            if not install_op.draw_status(box):
-                box.operator("micromesh.install_dependencies", icon="IMPORT")
+            install_op.draw_install(box)
 
 
 class MICROMESH_PT_base(_Panel, bpy.types.Panel):

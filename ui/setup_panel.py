@@ -20,8 +20,7 @@ class MICROMESH_PT_setup(bpy.types.Panel):
     def draw(self, context):
         box = self.layout.box()
         box.label(text="Missing: " + ", ".join(deps.missing_modules()), icon="ERROR")
-        if not install_op.draw_status(box):
-            box.operator("micromesh.install_dependencies", icon="IMPORT")
+        install_op.draw_install(box)
 
 
 def register():
