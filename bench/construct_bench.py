@@ -71,6 +71,8 @@ def theirs(name: str, python: str, cache: Path) -> dict:
 def ours(name: str, label: str, python: str, out: Path, overrides: list[str],
          extra: list[str]) -> dict:
     m, wall = run_batch(MESHES / f"{name}.ply", out, overrides, extra)
+    for stale in out.glob("judge_*.json"):     # scores of an earlier run's files
+        stale.unlink()
     j = judge(python, MESHES / f"{name}.ply", out / f"{name}.gltf", out / f"judge_{name}.json")
     jp = judge(python, MESHES / f"{name}.ply", out / f"{name}_micromesh.ply",
                out / f"judge_{name}_ply.json")
