@@ -15,7 +15,7 @@ def register_glue() -> bool:
     """Register operators and panels if their dependencies import; True when registered."""
     if _glue:
         return True
-    from .operators import deps
+    from .install import deps
 
     deps.ensure_on_path()
     if deps.missing_modules(deps.GLUE_MODULES):

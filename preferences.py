@@ -11,7 +11,8 @@ import os
 import bpy
 from bpy.props import EnumProperty, IntProperty, StringProperty
 
-from .operators import deps, install_op
+from .install import deps
+from .operators import install_op
 
 PACKAGE = __package__
 

@@ -1,4 +1,4 @@
-"""Install Dependencies: pip in the background (``deps_install.Install``) while Blender stays
+"""Install Dependencies: pip in the background (``install.pip_job.Install``) while Blender stays
 responsive; progress in the preferences and the setup panel, Esc or Cancel stops it and leaves
 the dependency folder as it was. From a script or ``blender -b`` it runs to the end at once.
 """
@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import bpy
 
-from . import deps, platforms
-from .deps_install import Install, InstallState
+from ..install import deps, platforms
+from ..install.pip_job import Install, InstallState
 
 _ACTIVE: Install | None = None
 _LAST: InstallState | None = None     # the last install's outcome, for the panels

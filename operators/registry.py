@@ -4,7 +4,8 @@ from __future__ import annotations
 import bpy
 from bpy.app.handlers import persistent
 
-from . import base_ops, construct_op, deps, files_op, job, maps_op, misc_ops, props, warmup
+from ..install import deps
+from . import base_ops, construct_op, files_op, job, maps_op, misc_ops, props, warmup
 
 CLASSES = (*base_ops.CLASSES, *construct_op.CLASSES, *misc_ops.CLASSES, *files_op.CLASSES,
            *maps_op.CLASSES)

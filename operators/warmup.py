@@ -12,7 +12,7 @@ import subprocess
 import time
 from typing import Callable
 
-from . import deps
+from ..install import deps
 
 _PROC: subprocess.Popen | None = None
 

@@ -107,7 +107,7 @@ mod = sys.modules["bl_ext.nodeps.micromesh"]
 print("setup", hasattr(bpy.types, "MICROMESH_PT_setup"), "install",
       hasattr(bpy.types, "MICROMESH_OT_install_dependencies"), "construct",
       hasattr(bpy.types, "MICROMESH_OT_construct"))
-missing = sys.modules["bl_ext.nodeps.micromesh.operators.deps"].missing_modules()
+missing = sys.modules["bl_ext.nodeps.micromesh.install.deps"].missing_modules()
 print("missing", ",".join(missing))
 bpy.ops.preferences.addon_disable(module="bl_ext.nodeps.micromesh")
 print("after", hasattr(bpy.types, "MICROMESH_PT_setup"), hasattr(bpy.types, "MICROMESH_OT_install_dependencies"))
@@ -131,7 +131,7 @@ def test_dependency_install_command():
     import micromesh_path
 
     micromesh_path.ensure_package()
-    from micromesh.operators import deps
+    from micromesh.install import deps
 
     assert deps.missing_modules() == []  # the venv has everything
     cmd = deps.pip_command("/tmp/target", ["torch", "scipy"])
@@ -152,7 +152,7 @@ r = bpy.context.preferences.extensions.repos.new(name="inst", module="inst",
                                                  custom_directory=d, source="USER")
 os.symlink(sys.argv[1], os.path.join(r.directory, "micromesh"))
 assert bpy.ops.preferences.addon_enable(module="bl_ext.inst.micromesh") == {"FINISHED"}
-deps = sys.modules["bl_ext.inst.micromesh.operators.deps"]
+deps = sys.modules["bl_ext.inst.micromesh.install.deps"]
 install_op = sys.modules["bl_ext.inst.micromesh.operators.install_op"]
 deps.REQUIREMENTS = {"tqdm": ("tqdm==4.70.1",)}        # a small real install
 target = os.path.join(d, "site-packages")

@@ -1,4 +1,4 @@
-"""The background install (operators/deps_install.py) with the real pip: a package installed
+"""The background install (install/pip_job.py) with the real pip: a package installed
 into a temporary folder and moved in, failures summed up in words, cancel leaving the
 dependency folder as it was, the torch build read from what arrived."""
 from __future__ import annotations
@@ -13,7 +13,7 @@ import pytest
 import micromesh_path
 
 micromesh_path.ensure_package()
-from micromesh.operators import deps_install as di  # noqa: E402  (imports no bpy)
+from micromesh.install import pip_job as di  # noqa: E402  (imports no bpy)
 
 # pip without this machine's configuration (mirrors, local wheels), aimed at a closed port
 UNREACHABLE = ["--isolated", "--index-url", "http://127.0.0.1:9/simple", "--retries", "1",
@@ -75,15 +75,23 @@ def test_no_network_is_named(tmp_path):
 
 
 def test_cancel_stops_pip_and_leaves_the_folder_as_it_was(tmp_path):
+    """pip waits on an index that accepts the connection and never answers; Cancel stops it."""
+    import socket
+
     target = _folder_with_a_file(tmp_path)
-    slow = ["--isolated", "--index-url", "http://10.255.255.1/simple", "--retries", "5",
-            "--timeout", "30"]
-    job = di.Install(_pip("tqdm==4.70.1", *slow), str(target), str(tmp_path / "l.log")).start()
-    time.sleep(1.0)
-    t = time.monotonic()
-    job.cancel()
-    s = job.wait(30)
-    assert s.phase == "cancelled" and time.monotonic() - t < 10
+    with socket.socket() as silent:
+        silent.bind(("127.0.0.1", 0))
+        silent.listen(8)
+        slow = ["--isolated", "--index-url", f"http://127.0.0.1:{silent.getsockname()[1]}/simple",
+                "--retries", "5", "--timeout", "60"]
+        job = di.Install(_pip("tqdm==4.70.1", *slow), str(target),
+                         str(tmp_path / "l.log")).start()
+        time.sleep(2.0)
+        assert not job.poll().done            # still waiting for the index
+        t = time.monotonic()
+        job.cancel()
+        s = job.wait(30)
+    assert s.phase == "cancelled" and time.monotonic() - t < 10, s.message
     assert sorted(p.name for p in target.iterdir()) == ["keep.txt"]
     assert not Path(job.temp).exists()
 

@@ -1,4 +1,4 @@
-"""Every platform Blender 4.2-5.0 runs on (operators/platforms.py): each pinned dependency
+"""Every platform Blender 4.2-5.0 runs on (install/platforms.py): each pinned dependency
 has a wheel for each supported one, and each unsupported one still lacks the wheel its reason
 names. pip resolves each pin for the platform's tags (``--dry-run --only-binary=:all:
 --no-deps``: pip would judge the markers of their own dependencies by this machine, not by
@@ -13,7 +13,7 @@ import pytest
 import micromesh_path
 
 micromesh_path.ensure_package()
-from micromesh.operators import deps, platforms  # noqa: E402  (neither imports bpy)
+from micromesh.install import deps, platforms  # noqa: E402  (neither imports bpy)
 
 
 @pytest.fixture(scope="module")

@@ -25,7 +25,8 @@ class MICROMESH_PT_main(_Panel, bpy.types.Panel):
         col = self.layout.column(align=True)
         col.prop(s, "source")
         col.prop(s, "base")
-        from ..operators import deps, install_op
+        from ..install import deps
+        from ..operators import install_op
 
         missing = deps.missing_modules()
         if missing:  # e.g. torch: projection works, the optimiser needs it

@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import bpy
 
-from ..operators import deps, install_op
+from ..install import deps
+from ..operators import install_op
 
 
 class MICROMESH_PT_setup(bpy.types.Panel):
