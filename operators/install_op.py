@@ -55,6 +55,10 @@ class MICROMESH_OT_install_dependencies(bpy.types.Operator):
         return _ACTIVE is None
 
     def _refused(self) -> bool:
+        here = platforms.current()
+        if here is not None and not here.supported:
+            self.report({"ERROR"}, f"{here.name} is not supported: {here.blocker}")
+            return True
         if not bpy.app.online_access:
             self.report({"ERROR"}, "Online access is disabled (Preferences > System > Network)")
             return True

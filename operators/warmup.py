@@ -18,7 +18,8 @@ _PROC: subprocess.Popen | None = None
 
 
 def start() -> subprocess.Popen | None:
-    """Start the warm-up process (once); None in background mode."""
+    """Start the warm-up process (once); None in background mode, or where it cannot start
+    (no writable log, no Python executable): the first Construct then compiles as it goes."""
     global _PROC
     import bpy
 
@@ -29,9 +30,12 @@ def start() -> subprocess.Popen | None:
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     package = __package__.rsplit(".", 1)[0]
     log = os.path.join(os.path.dirname(deps.log_path()), "warm.log")
-    with open(log, "w", encoding="utf-8") as out:
-        _PROC = subprocess.Popen(command(root, package, [deps.site_dir()]), stdout=out,
-                                 stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+    try:
+        with open(log, "w", encoding="utf-8") as out:
+            _PROC = subprocess.Popen(command(root, package, [deps.site_dir()]), stdout=out,
+                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+    except OSError:
+        _PROC = None
     return _PROC
 
 
