@@ -202,7 +202,8 @@ def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict
 
     name = source.name
     t0 = time.perf_counter()
-    reference = bl_mesh.mesh_to_arrays(source)
+    notes: list[str] = []
+    reference = bl_mesh.mesh_to_arrays(source, notes=notes)
     base_tm = None
     if args.base_method == "blender":
         target = min(target_faces(reference.n_faces, settings.base_ratio, settings.base_faces),
@@ -221,7 +222,7 @@ def process(bpy, pkg, source, args, settings, out, interrupt: Interrupt) -> dict
     try:
         outcome = pipeline.run(reference, base_tm, cams, settings, progress,
                                interrupt.should_stop, level=args.level, method=args.method,
-                               preset_name=args.preset)
+                               preset_name=args.preset, input_warnings=notes)
         progress.close(complete=True)
     except pipeline.PipelineCancelled:
         raise KeyboardInterrupt from None

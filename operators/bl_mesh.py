@@ -23,9 +23,10 @@ def mesh_arrays(mesh: bpy.types.Mesh) -> tuple[np.ndarray, np.ndarray]:
 
 
 def mesh_to_arrays(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph | None = None,
-                   world: bool = True) -> TriMesh:
+                   world: bool = True, notes: list[str] | None = None) -> TriMesh:
     """The evaluated mesh of ``obj`` (modifiers applied), triangulated, optionally in world space.
 
+    ``notes``: where to say, in words, that quads and n-gons were triangulated.
     Raises :class:`~core.mesh.MeshError` when the object has no triangles.
     """
     if depsgraph is None:
@@ -36,6 +37,13 @@ def mesh_to_arrays(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph | None 
         if mesh is None:
             raise MeshError(f"object '{obj.name}' has no mesh geometry")
         v, f = mesh_arrays(mesh)
+        if notes is not None:
+            sides = np.empty(len(mesh.polygons), dtype=np.int32)
+            mesh.polygons.foreach_get("loop_total", sides)
+            if (sides > 3).any():
+                notes.append(f"{int((sides == 4).sum())} quads and {int((sides > 4).sum())} "
+                             f"n-gons of '{obj.name}' were split into triangles "
+                             f"({len(f)} in all)")
     finally:
         obj_eval.to_mesh_clear()
     if len(f) == 0:

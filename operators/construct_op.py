@@ -65,7 +65,8 @@ def prepare(context, method: str = "auto") -> Prepared:
     if src is None:
         raise ValueError("no source: select a mesh object or set the source")
     base_obj = base_ops.base_object(context)
-    reference = bl_mesh.mesh_to_arrays(src)
+    notes: list[str] = []
+    reference = bl_mesh.mesh_to_arrays(src, notes=notes)
     base, tri_poly = None, None         # no base object: the worker builds one (core.base)
     if base_obj is not None:
         base, tri_poly = base_ops.base_arrays(base_obj)
@@ -81,17 +82,18 @@ def prepare(context, method: str = "auto") -> Prepared:
     if s.use_scene_cameras and s.camera_collection is not None:
         cams = cameras_io.collection_cameras(s.camera_collection, settings.train_resolution)
     work = partial(_work, reference, base, cams, settings, levels, s.level, method,
-                   str(s.preset).lower())
+                   str(s.preset).lower(), notes)
     return Prepared(src, base_obj, work)
 
 
-def _work(reference, base, cams, settings, levels, level, method, preset_name, progress,
+def _work(reference, base, cams, settings, levels, level, method, preset_name, notes, progress,
           should_stop):
     from .. import preferences  # noqa: F401  (threads are pinned in the main thread)
 
     warmup.wait(progress, should_stop)     # a first run: the kernels are being compiled
     return pipeline.run(reference, base, cams, settings, progress, should_stop,
-                        levels=levels, level=level, method=method, preset_name=preset_name)
+                        levels=levels, level=level, method=method, preset_name=preset_name,
+                        input_warnings=notes)
 
 
 def sync_state(scene, state: job.JobState) -> None:

@@ -36,7 +36,7 @@ def run(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
         settings: ConstructSettings, progress: Callable = lambda p: None,
         should_stop: Callable[[], bool] = lambda: False, levels: np.ndarray | None = None,
         level: int | None = None, method: str = "optimize",
-        preset_name: str = "default") -> Outcome:
+        preset_name: str = "default", input_warnings: list[str] = ()) -> Outcome:
     """Construct a micro-mesh of ``reference`` on ``base`` (both world space; ``base`` None:
     build it from the settings).
 
@@ -47,7 +47,8 @@ def run(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
     :class:`PipelineCancelled` when ``should_stop()`` turns true. The result follows the
     core's convention: directions as computed in the unit frame, displacements and bounds in
     world units; ``metrics["shell_volume"]`` is measured in the unit-sphere frame (the
-    paper's); ``metrics["warnings"]`` says how the base's topology differs from the input's.
+    paper's); ``metrics["warnings"]`` says how the base's topology differs from the input's,
+    after ``input_warnings`` (what reading the input found, e.g. triangulated polygons).
     """
     t0 = time.perf_counter()
     if method not in ("auto", "optimize", "projection"):
@@ -64,6 +65,7 @@ def run(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
         raise PipelineCancelled("construction cancelled")
     mm = res.micromesh
     metrics = dict(res.metrics or {})
+    metrics["warnings"] = list(input_warnings) + list(metrics.get("warnings", []))
     if "shell_volume" not in metrics:
         metrics["shell_volume"] = micromesh_shell_volume(res.micromesh_unit, None)
     metrics.update(base_faces=int(mm.base.n_faces), micro_vertices=int(mm.n_vertices),

@@ -362,3 +362,21 @@ def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, 
     first = surface_errors(fin.fitted(SimpleNamespace(**{**vars(run), "cost": None}), mm),
                            samples)[1].sum()
     assert surface_errors(out, samples)[1].sum() <= first * (1 + 1e-9)  # never worse
+
+
+def test_many_parts_are_said():
+    """From core.construct.frame.MANY_PARTS connected components on, the run says what they
+    cost; fewer parts get no warning."""
+    from core.construct.frame import MANY_PARTS, oriented_reference
+
+    v, f = icosphere(1)
+
+    def parts(n):
+        return TriMesh(np.vstack([v * 0.1 + [k, 0, 0] for k in range(n)]),
+                       np.vstack([f + k * len(v) for k in range(n)]))
+
+    _, few = oriented_reference(parts(MANY_PARTS - 1))
+    _, many = oriented_reference(parts(MANY_PARTS))
+    assert few == []
+    assert many == [f"the input has {MANY_PARTS} separate parts: the base keeps every one, so "
+                    "small parts take base triangles and budget from the large ones"]

@@ -96,3 +96,18 @@ def test_decimate_object_vertex_group_weighting():
     assert (weighted[0] > weighted[1]) != (inverted[0] > inverted[1])
     with pytest.raises(ValueError, match="vertex group"):
         bl_mesh.decimate_object(obj, ratio=0.3, vertex_group="nope")
+
+
+def test_triangulated_polygons_are_said():
+    """Quads and n-gons are split into triangles, and ``notes`` says how many of each; a mesh
+    of triangles only gets no note."""
+    bpy.ops.mesh.primitive_cylinder_add(vertices=8)       # 8 quads, two octagons
+    notes: list[str] = []
+    tm = bl_mesh.mesh_to_arrays(bpy.context.active_object, notes=notes)
+    assert tm.n_faces == 8 * 2 + 2 * 6
+    assert notes == [f"8 quads and 2 n-gons of '{bpy.context.active_object.name}' were split "
+                     "into triangles (28 in all)"]
+    bpy.ops.object.modifier_add(type="TRIANGULATE")
+    notes.clear()
+    bl_mesh.mesh_to_arrays(bpy.context.active_object, notes=notes)
+    assert notes == []                                    # the evaluated mesh is what counts

@@ -37,12 +37,19 @@ def check_reference(reference: TriMesh) -> None:
                              "degenerate (zero area)")
 
 
+MANY_PARTS = 10     # from this many connected components on, a warning says what they cost
+
+
 def oriented_reference(reference: TriMesh) -> tuple[TriMesh, list[str]]:
     """The reference with consistent winding, closed parts facing out (``core.orient``), and
-    in words what was turned and which edges no surface can keep (the caller's mesh is not
-    changed)."""
+    in words what was turned, which edges no surface can keep and whether it has many parts
+    (the caller's mesh is not changed)."""
     o = orient(reference)
     warnings = o.warnings()
+    parts = reference.n_components
+    if parts >= MANY_PARTS:
+        warnings.append(f"the input has {parts} separate parts: the base keeps every one, so "
+                        "small parts take base triangles and budget from the large ones")
     nm = int((reference.edge_face_count > 2).sum())
     if nm:
         warnings.append(f"the input has {nm} non-manifold edges (three or more faces on one "
