@@ -150,7 +150,7 @@ def test_a_broken_file_in_a_folder_fails_alone(inputs, tmp_path):
 
 
 def test_budget_and_base_options_become_settings():
-    import batch
+    from cli import args as batch    # batch.py's options (cli/args.py)
 
     assert batch.budget_overrides("2.5x") == ["budget_ratio=2.5", "budget_micro_triangles=0",
                                               "budget_bytes=0"]

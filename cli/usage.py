@@ -1,0 +1,50 @@
+"""Everything ``batch.py`` checks before any work: inputs, settings, options, the output
+folder and results that exist."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..core.io.output_set import OutputError, OutputSet, check_output_folder, output_names
+from ..core.settings import SettingsError, apply_overrides, preset
+from .args import BatchError, base_overrides, budget_overrides, find_inputs, result_suffixes
+
+DEMO_NAME = "demo_rock"
+
+
+def check_usage(args: argparse.Namespace):
+    """Everything that can be checked before any work: inputs, settings, options, the output
+    folder and existing results. Returns (settings, inputs or [None] for the demo, one
+    OutputSet per input); raises :class:`BatchError`."""
+    inputs = find_inputs(args.input)
+    extra = base_overrides(args) + (budget_overrides(args.budget) if args.budget else [])
+    try:
+        settings = apply_overrides(preset(args.preset), extra + args.overrides)
+    except SettingsError as e:
+        raise BatchError(str(e)) from None
+    if args.level is not None and not 0 <= args.level <= 5:
+        raise BatchError("--level must be within 0..5")
+    if args.level is not None and args.method != "projection":
+        raise BatchError("--level sets the projection method's level: use it with "
+                         "--method projection (the optimiser's levels come from the budget "
+                         "and --set max_level=N)")
+    if args.threads < 0:
+        raise BatchError("--threads must be >= 0 (0: all usable cores)")
+    if args.maps and not 64 <= args.maps <= 16384:
+        raise BatchError("--maps must be a resolution within 64..16384 (0: no maps)")
+    out_dir = Path(args.output)
+    names = output_names(inputs) if inputs else [DEMO_NAME]
+    report = [".report.png", ".report.json"] if settings.compute_metrics else []
+    suffixes = [".blend"] + result_suffixes(args) + report \
+        + (["_micromesh.ply"] if args.ply else []) + [".metrics.json"]
+    sets = [OutputSet(out_dir, n, suffixes) for n in names]
+    try:
+        check_output_folder(out_dir)
+    except OutputError as e:
+        raise BatchError(str(e)) from None
+    existing = [p for o in sets for p in o.existing()]
+    if existing and not args.force:
+        raise BatchError(f"{len(existing)} result file(s) exist in {out_dir} ("
+                         f"{', '.join(p.name for p in existing[:3])}"
+                         f"{', ...' if len(existing) > 3 else ''}); --force replaces them")
+    return settings, inputs or [None], sets
