@@ -380,3 +380,14 @@ def test_many_parts_are_said():
     assert few == []
     assert many == [f"the input has {MANY_PARTS} separate parts: the base keeps every one, so "
                     "small parts take base triangles and budget from the large ones"]
+
+
+def test_seams_split_in_a_file_are_not_parts():
+    """A sphere whose vertices are split along every face (as files split them at UV seams or
+    flat-shaded edges) is one part: no many-parts warning."""
+    from core.construct.frame import oriented_reference
+
+    v, f = icosphere(2)
+    split = TriMesh(v[f.reshape(-1)], np.arange(3 * len(f)).reshape(-1, 3))
+    assert split.n_components == len(f)
+    assert oriented_reference(split)[1] == []

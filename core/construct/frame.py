@@ -8,6 +8,7 @@ import numpy as np
 import torch
 
 from ..base import DecimateCancelled, base_for, differences, topology
+from ..base.build import welded
 from ..bounds import DirectionBounds
 from ..cameras import Cameras, fibonacci_cameras
 from ..mesh import Normalization, TriMesh
@@ -46,7 +47,7 @@ def oriented_reference(reference: TriMesh) -> tuple[TriMesh, list[str]]:
     (the caller's mesh is not changed)."""
     o = orient(reference)
     warnings = o.warnings()
-    parts = reference.n_components
+    parts = welded(reference).n_components      # seams split in the file are not parts
     if parts >= MANY_PARTS:
         warnings.append(f"the input has {parts} separate parts: the base keeps every one, so "
                         "small parts take base triangles and budget from the large ones")
