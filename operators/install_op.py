@@ -4,6 +4,8 @@ the dependency folder as it was. From a script or ``blender -b`` it runs to the 
 """
 from __future__ import annotations
 
+import textwrap
+
 import bpy
 
 from ..install import deps, platforms
@@ -133,7 +135,8 @@ def draw_install(layout, prefs=None, offer: bool = True) -> None:
     fetch and the log's path); on a platform without wheels, why not, instead of the button."""
     here = platforms.current()
     if offer and here is not None and not here.supported:
-        for i, line in enumerate(_wrap(f"{here.name} is not supported: {here.blocker}", 70)):
+        reason = f"{here.name} is not supported: {here.blocker}"
+        for i, line in enumerate(textwrap.wrap(reason, 70)):
             layout.label(text=line, icon="ERROR" if i == 0 else "BLANK1")
         return
     state, running = status()
@@ -143,7 +146,7 @@ def draw_install(layout, prefs=None, offer: bool = True) -> None:
         return
     if state is not None:
         icon = {"finished": "CHECKMARK", "cancelled": "INFO"}.get(state.phase, "ERROR")
-        for i, line in enumerate(_wrap(state.message, 70)):
+        for i, line in enumerate(textwrap.wrap(state.message, 70)):
             layout.label(text=line, icon=icon if i == 0 else "BLANK1")
     if not offer:
         return
@@ -152,17 +155,6 @@ def draw_install(layout, prefs=None, offer: bool = True) -> None:
     layout.operator("micromesh.install_dependencies", icon="IMPORT")
     if prefs is not None:
         layout.label(text="Log: " + deps.log_path())
-
-
-def _wrap(text: str, width: int) -> list[str]:
-    lines, cur = [], ""
-    for word in text.split():
-        if cur and len(cur) + 1 + len(word) > width:
-            lines.append(cur)
-            cur = word
-        else:
-            cur = f"{cur} {word}".strip()
-    return lines + ([cur] if cur else [])
 
 
 CLASSES = (MICROMESH_OT_install_dependencies, MICROMESH_OT_cancel_install)

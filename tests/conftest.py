@@ -22,6 +22,20 @@ def mesh_path(name: str) -> Path:
     return p
 
 
+@pytest.fixture(scope="session")
+def package_index(tmp_path_factory):
+    """A scratch folder where pip can reach the package index (it fetches a small wheel);
+    skips the test where it cannot."""
+    import subprocess
+
+    r = subprocess.run([sys.executable, "-m", "pip", "download", "--no-deps", "-q", "-d",
+                        str(tmp_path_factory.mktemp("dl")), "tqdm==4.70.1"],
+                       capture_output=True, text=True, timeout=120)
+    if r.returncode != 0:
+        pytest.skip("the package index cannot be reached")
+    return tmp_path_factory.mktemp("pip")
+
+
 # The bpy 4.5 module can deadlock in a C++ static destructor at process exit (its
 # "delayed close" file thread, seen with gdb: GlobalState::~GlobalState waiting in
 # pthread_cond_destroy) after the tests have passed. Where bpy was imported, end the process

@@ -16,16 +16,6 @@ micromesh_path.ensure_package()
 from micromesh.install import deps, platforms  # noqa: E402  (neither imports bpy)
 
 
-@pytest.fixture(scope="module")
-def index(tmp_path_factory):
-    r = subprocess.run([sys.executable, "-m", "pip", "download", "--no-deps", "-q", "-d",
-                        str(tmp_path_factory.mktemp("dl")), "tqdm==4.70.1"],
-                       capture_output=True, text=True, timeout=120)
-    if r.returncode != 0:
-        pytest.skip("the package index cannot be reached")
-    return tmp_path_factory.mktemp("target")
-
-
 def _resolve(p: platforms.Platform, reqs: list[str], target):
     tags = [a for t in p.tags for a in ("--platform", t)]
     return subprocess.run([sys.executable, "-m", "pip", "install", "--dry-run", "--no-deps",
@@ -36,11 +26,11 @@ def _resolve(p: platforms.Platform, reqs: list[str], target):
 
 @pytest.mark.parametrize("p", [p for p in platforms.PLATFORMS if p.supported],
                          ids=lambda p: p.name)
-def test_the_pinned_set_has_wheels(p, index):
+def test_the_pinned_set_has_wheels(p, package_index):
     reqs = ["numpy<2"] + platforms.requirements_for(
         [r for rs in deps.REQUIREMENTS.values() for r in rs], p.env)
     assert sum(r.startswith("torch==") for r in reqs) == 1
-    r = _resolve(p, reqs, index)
+    r = _resolve(p, reqs, package_index)
     assert r.returncode == 0, r.stdout[-1500:] + r.stderr[-1500:]
     installs = r.stdout.strip().splitlines()[-1].split()
     assert len(installs) == 2 + len(reqs) and any(w.startswith("torch-2.") for w in installs)
@@ -48,8 +38,8 @@ def test_the_pinned_set_has_wheels(p, index):
 
 @pytest.mark.parametrize("p", [p for p in platforms.PLATFORMS if not p.supported],
                          ids=lambda p: p.name)
-def test_an_unsupported_platform_still_lacks_what_its_reason_names(p, index):
-    r = _resolve(p, [p.blocked_by], index)
+def test_an_unsupported_platform_still_lacks_what_its_reason_names(p, package_index):
+    r = _resolve(p, [p.blocked_by], package_index)
     assert r.returncode != 0 and "No matching distribution found for " + p.blocked_by in \
         r.stderr, r.stdout[-500:] + r.stderr[-500:]
 
