@@ -63,3 +63,17 @@ def test_report_of_a_baseline_has_no_curves_and_says_its_warnings(scene):  # noq
     png, data = make_report(res, flipped, res.metrics)
     assert data["history"]["iteration"] == [] and data["warnings"]
     assert _png(png).shape[:2] == (SIZE[1], SIZE[0])
+
+
+def test_the_residual_lod_decision_is_reported(optimised):
+    """finalise.fitted's decision on the levels moved after the fit reaches the JSON and the
+    table (here: a decision made up for the test, kept and refused)."""
+    ref, res = optimised
+    for kept in (True, False):
+        decision = {"faces_up": 7, "faces_down": 12, "kept": kept, "shading_error_before": 2.0,
+                    "shading_error_after": 1.5 if kept else 2.5}
+        _, data = make_report(res, ref, {**res.metrics, "residual_lod": decision}, "fast")
+        assert data["metrics"]["residual_lod"] == decision
+    _, data = make_report(res, ref, {k: v for k, v in res.metrics.items()
+                                     if k != "residual_lod"}, "fast")
+    assert "residual_lod" not in data["metrics"]
