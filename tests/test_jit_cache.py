@@ -63,3 +63,23 @@ def test_warm_command_imports_the_package_under_the_callers_name(tmp_path):
                        env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)})
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "warm: kernels cached: False"
+
+
+def test_entries_of_earlier_sources_are_pruned(tmp_path):
+    """prune_stale removes cache entries whose source digest is not this source's and keeps
+    this source's (any import name) and files that are not kernel entries."""
+    from core.render import normals
+    from core.runtime import jit
+
+    now = jit.source_digest()
+    old = "0123456789" if now != "0123456789" else "9876543210"
+    names = {f"core.{old}.closest._build-63.py311.1.nbc": False,
+             f"core.render.{old}.antialias.pair_codes-157.py311.nbi": False,
+             f"core.{now}.closest._build-63.py311.1.nbc": True,
+             f"micromesh.core.{now}.closest._build-63.py311.nbi": True,
+             "notes.txt": True}
+    for n in names:
+        (tmp_path / n).write_text("x")
+    assert jit.prune_stale([tmp_path, tmp_path / "absent"]) == 2
+    assert {p.name for p in tmp_path.iterdir()} == {n for n, keep in names.items() if keep}
+    assert normals._face_normals._cache._cache_path in jit.cache_folders()

@@ -14,6 +14,7 @@ of them recompiles them all.
 from __future__ import annotations
 
 import hashlib
+import re
 from functools import lru_cache
 from pathlib import Path
 from typing import Callable
@@ -33,6 +34,43 @@ def source_digest() -> str:
             h.update(f.relative_to(root).as_posix().encode())
             h.update(text)
     return h.hexdigest()[:10]
+
+
+_ENTRY = re.compile(r"^(?:[\w]+\.)+?([0-9a-f]{10})\.[\w.]+-\d+\.py\d+(?:\.\d+)?\.nb[ic]$")
+
+
+def prune_stale(folders) -> int:
+    """Remove the cache entries of earlier sources (another digest than this source's) from
+    ``folders`` (numba's cache folders of this package's kernels); returns how many went.
+    Every change to a kernel source leaves a full set of entries behind otherwise."""
+    current, gone = source_digest(), 0
+    for folder in {Path(f) for f in folders}:
+        for entry in folder.glob("*.nb[ic]") if folder.is_dir() else ():
+            m = _ENTRY.match(entry.name)
+            if m and m.group(1) != current:
+                try:
+                    entry.unlink()
+                    gone += 1
+                except OSError:
+                    pass
+    return gone
+
+
+def cache_folders() -> list[str]:
+    """numba's cache folders of this package's kernels (in the source tree, or where numba
+    put them: NUMBA_CACHE_DIR, the user's cache)."""
+    import sys
+
+    folders = []
+    package = __name__.rsplit(".", 2)[0]
+    for name, module in list(sys.modules.items()):
+        if not name.startswith(package + ".") or module is None:
+            continue
+        for obj in vars(module).values():
+            cache = getattr(obj, "_cache", None)
+            if isinstance(cache, _NamedCache):
+                folders.append(cache._cache_path)
+    return sorted(set(folders))
 
 
 class _NamedImpl(CompileResultCacheImpl):

@@ -37,6 +37,9 @@ def warm(progress: Callable[[str], None] | None = None) -> float:
                       eval_resolution=32, eval_views=2, n_views=4, views_per_iter=2)
     report = (lambda p: progress(str(p.phase))) if progress else None
     construct(TriMesh(v, f), None, None, settings, progress=report)
+    from .jit import cache_folders, prune_stale
+
+    prune_stale(cache_folders())             # entries of earlier sources
     return time.perf_counter() - t
 
 
