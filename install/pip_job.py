@@ -12,14 +12,14 @@ this platform, disk full, no permission), with the log's path for the rest.
 from __future__ import annotations
 
 import os
-import platform
-import re
 import shutil
 import subprocess
 import sys
 import threading
 import time
 from dataclasses import dataclass, field
+
+from .pip_output import failure_cause, line_progress
 
 
 class InstallError(RuntimeError):
@@ -51,51 +51,6 @@ class InstallState:
             parts.append(f"{self.downloaded_mb:.0f} MB fetched")
         parts.append(f"{time.monotonic() - self.started:.0f} s")
         return "  ".join(parts)
-
-
-_DOWNLOAD = re.compile(r"^\s*(?:Downloading|Using cached) (\S+?)(?:-\d[^\s]*)?"
-                       r"\.(?:whl|tar\.gz|zip)\s+\(([\d.]+) (kB|MB|GB)\)")
-_COLLECT = re.compile(r"^\s*Collecting (\S+)")
-_LOCAL = re.compile(r"^\s*Processing \S*?([A-Za-z0-9_.]+?)-\d[^\s/]*\.whl\s*$")  # a local wheel
-_UNIT_MB = {"kB": 1e-3, "MB": 1.0, "GB": 1e3}
-
-
-def platform_text() -> str:
-    """This machine in words, as a failure message names it."""
-    system = {"Darwin": "macOS", "Windows": "Windows", "Linux": "Linux"}.get(
-        platform.system(), platform.system())
-    release = platform.mac_ver()[0] if system == "macOS" else ""
-    return " ".join(p for p in (system, release, platform.machine(),
-                                f"Python {sys.version_info[0]}.{sys.version_info[1]}") if p)
-
-
-_NETWORK = ("NewConnectionError", "Failed to establish a new connection",
-            "Name or service not known",
-            "Temporary failure in name resolution", "Network is unreachable", "ConnectionError",
-            "ReadTimeoutError", "ConnectTimeoutError", "getaddrinfo failed",
-            "No connection could be made", "ProxyError", "SSLError")
-
-
-def failure_cause(lines: list[str]) -> str:
-    """The cause of a failed pip run, in words, from its output."""
-    text = "\n".join(lines)
-    if "No space left on device" in text or "[Errno 28]" in text:
-        return "the disk is full: pip could not write the packages (about 1.4 GB are needed)"
-    if "Permission denied" in text or "[Errno 13]" in text:
-        return "no permission to write the dependency folder or pip's temporary files"
-    missing = re.search(r"No matching distribution found for (\S+)", text)
-    if any(s in text for s in _NETWORK):
-        return ("no network: pip could not reach the package index (check the connection, a "
-                "proxy or a firewall; Blender's online access must be on)")
-    if missing and "(from versions: none)" in text:
-        return (f"pip found no version of {missing.group(1)} at all: the package index cannot "
-                "be reached (no network, a proxy, a firewall) or has nothing for "
-                + platform_text())
-    if missing:
-        return (f"no package for this platform: {missing.group(1)} has no wheel for "
-                f"{platform_text()} (see the README's supported platforms)")
-    errors = [ln.strip() for ln in lines if ln.strip().startswith("ERROR")]
-    return errors[-1] if errors else (lines[-1].strip() if lines else "pip printed nothing")
 
 
 def torch_build(folder: str, python: str = sys.executable) -> tuple[str, str] | None:
@@ -219,24 +174,14 @@ class Install:
         return lines
 
     def _progress(self, line: str) -> None:
-        m = _DOWNLOAD.match(line)
-        if m:
-            with self._lock:
-                self.state.phase, self.state.package = "downloading", m.group(1)
-                self.state.downloaded_mb += float(m.group(2)) * _UNIT_MB[m.group(3)]
-                self.state.packages_done += 1
+        said = line_progress(line)
+        if said is None:
             return
-        m = _LOCAL.match(line)
-        if m:
-            with self._lock:
-                self.state.phase, self.state.package = "downloading", m.group(1)
+        with self._lock:
+            self.state.phase, self.state.package = said["phase"], said["package"]
+            if said.get("fetched"):
+                self.state.downloaded_mb += said["mb"]
                 self.state.packages_done += 1
-            return
-        m = _COLLECT.match(line)
-        if m:
-            self._set(phase="downloading", package=m.group(1))
-        elif line.startswith("Installing collected packages"):
-            self._set(phase="installing", package=line.split(":", 1)[-1].strip()[:60])
 
     def _check_torch(self, version: str, build: str) -> None:
         self._set(torch=f"{version}, {build} build")

@@ -22,14 +22,11 @@ def status() -> tuple[InstallState | None, bool]:
     return _LAST, False
 
 
-def _prefs():
-    addon = bpy.context.preferences.addons.get(deps.PACKAGE)
-    return addon.preferences if addon else None
-
-
 def _start() -> Install:
     global _ACTIVE, _LAST
-    prefs = _prefs()
+    from ..preferences import get_prefs     # not at import: preferences imports this module
+
+    prefs = get_prefs()
     cuda = bool(prefs and getattr(prefs, "torch_build", "CPU") == "CUDA")
     _LAST = None
     _ACTIVE = Install(lambda folder: deps.pip_command(folder, cuda=cuda), deps.site_dir(),

@@ -60,6 +60,18 @@ def active_job() -> "Job | None":
     return _ACTIVE
 
 
+_REPORT_KEYS = ("phase", "iteration", "total", "total_iterations", "psnr", "loss", "eta_s",
+                "fraction")
+
+
+def report_items(report: Any) -> dict:
+    """A progress report (a mapping, or an object such as ``core.construct.Progress``) as a
+    new dict of the keys it has."""
+    if isinstance(report, dict):
+        return dict(report)
+    return {k: getattr(report, k) for k in _REPORT_KEYS if hasattr(report, k)}
+
+
 class Job:
     """Run ``work(progress, should_stop)`` in a daemon thread; one job at a time per process.
 
@@ -77,10 +89,7 @@ class Job:
 
     # ------------------------------------------------------------ worker side
     def _progress(self, report: Any) -> None:
-        if not isinstance(report, dict):
-            report = {k: getattr(report, k) for k in ("phase", "iteration", "total",
-                      "total_iterations", "psnr", "loss", "eta_s", "fraction") if hasattr(report, k)}
-        self._queue.put(("progress", dict(report)))
+        self._queue.put(("progress", report_items(report)))
 
     def _run(self) -> None:
         try:
@@ -128,9 +137,7 @@ class Job:
     @staticmethod
     def _progress_into(state: JobState, report) -> None:
         """Apply one progress report (mapping or object) to ``state``."""
-        items = dict(report) if isinstance(report, dict) else {
-            k: getattr(report, k) for k in ("phase", "iteration", "total", "total_iterations", "psnr",
-                                            "loss", "eta_s", "fraction") if hasattr(report, k)}
+        items = report_items(report)
         if "total_iterations" in items:  # core.construct.Progress
             items["total"] = items.pop("total_iterations")
         for k, v in items.items():

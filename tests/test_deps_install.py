@@ -13,6 +13,7 @@ import micromesh_path
 
 micromesh_path.ensure_package()
 from micromesh.install import pip_job as di  # noqa: E402  (imports no bpy)
+from micromesh.install import pip_output  # noqa: E402
 
 # pip without this machine's configuration (mirrors, local wheels), aimed at a closed port
 UNREACHABLE = ["--isolated", "--index-url", "http://127.0.0.1:9/simple", "--retries", "1",
@@ -48,7 +49,7 @@ def test_no_wheel_is_named_and_nothing_changes(tmp_path, package_index):
     s = di.Install(_pip("tqdm==0.0.1"), str(target), str(tmp_path / "l.log")).start().wait(300)
     assert s.phase == "failed"
     assert "no package for this platform: tqdm==0.0.1 has no wheel for" in s.message
-    assert di.platform_text() in s.message and str(tmp_path / "l.log") in s.message
+    assert pip_output.platform_text() in s.message and str(tmp_path / "l.log") in s.message
     assert sorted(p.name for p in target.iterdir()) == ["keep.txt"]
 
 
@@ -101,7 +102,7 @@ def test_cancel_stops_pip_and_leaves_the_folder_as_it_was(tmp_path):
     ("ERROR: something else", "ERROR: something else"),
 ])
 def test_failure_cause_in_words(line, cause):
-    assert di.failure_cause(line.splitlines()).startswith(cause)
+    assert pip_output.failure_cause(line.splitlines()).startswith(cause)
 
 
 def test_torch_build_of_the_test_environment():

@@ -77,8 +77,9 @@ def command(package_root: str, package_name: str, extra_paths: list[str],
             "m = importlib.util.module_from_spec(spec); sys.modules[name] = m\n"
             "spec.loader.exec_module(m)\n"
             "w = importlib.import_module(name + '.core.runtime.warm')\n"
-            "if w.is_warm() or action == 'is_warm':\n"
-            "    print('warm: kernels cached:', w.is_warm(), flush=True); sys.exit(0)\n"
+            "cached = w.is_warm()\n"
+            "if cached or action == 'is_warm':\n"
+            "    print('warm: kernels cached:', cached, flush=True); sys.exit(0)\n"
             "if hasattr(os, 'nice'): os.nice(10)\n"
             "print('warm: kernels ready in %.1f s' % w.warm(), flush=True)\n")
     return [sys.executable, "-c", code, package_root, package_name, action, *extra_paths]
