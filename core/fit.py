@@ -9,7 +9,13 @@ micro-triangle, area-weighted), each matched to its closest point on the current
 
     r = n · (Σ_k b_k (P_k + D_k d_k) − s)
 
-minimised in the least-squares sense together with ``smoothness`` · |L d|² (the micro
+minimised in the least-squares sense together with ``slopes`` times the same weights on
+
+    e = n · (X_b − X_a)   for each edge (a, b) of the matched micro-triangle,
+
+which asks that triangle to lie in the sample's tangent plane, so that its normal, which flat
+shading shows, is the reference's (distance alone lets a triangle tilt while its points stay
+close), and ``smoothness`` · |L d|² (the micro
 Laplacian, which keeps vertices without samples in place and damps noise). The matches are
 renewed ``iterations`` times (an ICP on the displacements). The sparse normal equations are
 solved by a sparse factorisation. Lengths are those of the inputs (the construction calls it
@@ -97,7 +103,8 @@ def fit_samples(mm: MicroMesh, reference: TriMesh, density: float = 2.0):
 
 
 def fit_displacements(mm: MicroMesh, reference: TriMesh, smoothness: float = 1e-3,
-                      iterations: int = 2, density: float = 2.0, samples=None) -> np.ndarray:
+                      iterations: int = 2, density: float = 2.0, samples=None,
+                      slopes: float = 0.1) -> np.ndarray:
     """Displacements (n,) of ``mm``'s micro-vertices fitted to ``reference`` (see the module
     docstring); ``mm``'s own displacements are the starting point.
 
@@ -105,8 +112,8 @@ def fit_displacements(mm: MicroMesh, reference: TriMesh, smoothness: float = 1e-
     subdivided for it). ``samples``: the output of
     :func:`reference_samples`, when the caller reuses it.
     """
-    if smoothness < 0 or iterations < 1 or not density > 0:
-        raise FitError("smoothness must be >= 0, iterations >= 1 and density > 0")
+    if smoothness < 0 or slopes < 0 or iterations < 1 or not density > 0:
+        raise FitError("smoothness and slopes must be >= 0, iterations >= 1 and density > 0")
     P, D = mm.micro_vertex_base_positions(), mm.micro_vertex_directions()
     T = mm.topology.triangles                  # the non-degenerate micro-triangles
     n = mm.n_vertices
@@ -123,14 +130,41 @@ def fit_displacements(mm: MicroMesh, reference: TriMesh, smoothness: float = 1e-
         B = _barycentrics(cp, X[corners[:, 0]], X[corners[:, 1]], X[corners[:, 2]])
         nD = np.einsum("sc,skc->sk", normals, D[corners])
         nP = np.einsum("sc,skc->sk", normals, P[corners])
-        A = sp.csr_matrix(((B * nD).reshape(-1),
-                           (np.repeat(np.arange(len(pts)), 3), corners.reshape(-1))),
-                          shape=(len(pts), n))
-        rhs = (normals * pts).sum(1) - (B * nP).sum(1)
-        AtW = A.T.multiply(weights[None, :]).tocsr()
+        A, rhs, w = _point_rows(B, nD, nP, corners, n, (normals * pts).sum(1), weights)
+        if slopes > 0:
+            A, rhs, w = _stack((A, rhs, w), _slope_rows(nD, nP, corners, n, slopes * weights))
+        AtW = A.T.multiply(w[None, :]).tocsr()
         M = (AtW @ A + reg).tocsc()
         d = spla.spsolve(M, AtW @ rhs + 1e-9 * d)
     return np.asarray(d, dtype=np.float64)
+
+
+def _point_rows(B, nD, nP, corners, n, target, weights):
+    """Rows of the point-to-plane residuals: n·(Σ b_k (P_k + D_k d_k)) = n·s."""
+    s = len(B)
+    A = sp.csr_matrix(((B * nD).reshape(-1), (np.repeat(np.arange(s), 3), corners.reshape(-1))),
+                      shape=(s, n))
+    return A, target - (B * nP).sum(1), weights
+
+
+def _slope_rows(nD, nP, corners, n, weights):
+    """Rows of the slope residuals: n·(X_b − X_a) = 0 for the three edges of each matched
+    micro-triangle (X_k = P_k + D_k d_k)."""
+    s = len(nD)
+    rows = np.repeat(np.arange(3 * s), 2)
+    vals, cols, rhs = [], [], []
+    for a, b in ((0, 1), (1, 2), (2, 0)):
+        vals.append(np.stack([-nD[:, a], nD[:, b]], 1))
+        cols.append(np.stack([corners[:, a], corners[:, b]], 1))
+        rhs.append(nP[:, a] - nP[:, b])
+    A = sp.csr_matrix((np.concatenate(vals).reshape(-1), (rows, np.concatenate(cols).reshape(-1))),
+                      shape=(3 * s, n))
+    return A, np.concatenate(rhs), np.tile(weights, 3)
+
+
+def _stack(*blocks):
+    return (sp.vstack([b[0] for b in blocks]).tocsr(), np.concatenate([b[1] for b in blocks]),
+            np.concatenate([b[2] for b in blocks]))
 
 
 def _areas(X: np.ndarray, T: np.ndarray) -> np.ndarray:

@@ -6,7 +6,7 @@ import pytest
 from core import primitives
 from core.bake import bake_displacements
 from core.closest import ClosestPointIndex
-from core.fit import FitError, fit_displacements, reference_samples
+from core.fit import FitError, fit_displacements, fit_samples, reference_samples, surface_errors
 from core.laplacian import uniform_laplacian
 from core.mesh import TriMesh
 from core.micromesh import MicroMesh
@@ -58,12 +58,29 @@ def test_smoothness_smooths(bumpy):
     assert np.linalg.norm(L @ rough) > smoother[0] > 1.5 * smoother[1]
 
 
+def test_slopes_bring_the_shading_normals_closer(bumpy):
+    """The slope term trades a little distance for micro-triangles that lie in the
+    reference's tangent planes: the squared normal differences (what flat shading shows) fall,
+    and more weight lowers them further."""
+    ref, baked = bumpy
+    samples = fit_samples(baked, ref)
+    errors = [surface_errors(baked.with_displacements(
+        fit_displacements(baked, ref, samples=samples, slopes=w)), samples)
+        for w in (0.0, 0.1, 1.0)]
+    normal = [e[1].sum() for e in errors]
+    assert normal[0] > 1.02 * normal[1] > 1.02 * normal[2], normal
+    distance = [e[0].sum() for e in errors]
+    assert distance[1] < 1.5 * distance[0], distance
+
+
 def test_bad_settings(bumpy):
     ref, baked = bumpy
     with pytest.raises(FitError):
         fit_displacements(baked, ref, smoothness=-1)
     with pytest.raises(FitError):
         fit_displacements(baked, ref, density=0)
+    with pytest.raises(FitError):
+        fit_displacements(baked, ref, slopes=-0.1)
     with pytest.raises(FitError):
         reference_samples(ref, sample_area=0.0)
 

@@ -64,7 +64,7 @@ def fitted(run: RunState, mm: MicroMesh) -> MicroMesh:
     with run.timer.phase("fit"):
         samples = fit_samples(mm, ref)
         mm = mm.with_displacements(fit_displacements(mm, ref, run.s.fit_smoothness,
-                                                     samples=samples))
+                                                     samples=samples, slopes=run.s.fit_slopes))
     if not (run.s.residual_lod > 0 and run.fixed is None and run.cost is not None):
         return mm
     run.check_stop()
@@ -76,7 +76,8 @@ def fitted(run: RunState, mm: MicroMesh) -> MicroMesh:
     with run.timer.phase("fit"):
         moved = mm.with_levels(new)
         moved = moved.with_displacements(fit_displacements(
-            moved, ref, run.s.fit_smoothness, samples=fit_samples(moved, ref)))
+            moved, ref, run.s.fit_smoothness, samples=fit_samples(moved, ref),
+            slopes=run.s.fit_slopes))
     with run.timer.phase("residual_lod"):
         after = surface_errors(moved, samples)[1].sum()
     keep = bool(after < normal.sum())
