@@ -26,7 +26,8 @@ def mesh_to_arrays(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph | None 
                    world: bool = True, notes: list[str] | None = None) -> TriMesh:
     """The evaluated mesh of ``obj`` (modifiers applied), triangulated, optionally in world space.
 
-    ``notes``: where to say, in words, that quads and n-gons were triangulated.
+    ``notes``: where to say, in words, that quads and n-gons were triangulated and that shape
+    keys were mixed in.
     Raises :class:`~core.mesh.MeshError` when the object has no triangles.
     """
     if depsgraph is None:
@@ -48,6 +49,10 @@ def mesh_to_arrays(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph | None 
         obj_eval.to_mesh_clear()
     if len(f) == 0:
         raise MeshError(f"object '{obj.name}' has no faces")
+    keys = getattr(obj.data, "shape_keys", None)
+    if notes is not None and keys is not None and len(keys.key_blocks) > 1:
+        notes.append(f"'{obj.name}' has {len(keys.key_blocks) - 1} shape keys: their current "
+                     "mix (as the viewport shows it) was used")
     if world:
         m = np.array(obj_eval.matrix_world, dtype=np.float64)
         v = v @ m[:3, :3].T + m[:3, 3]

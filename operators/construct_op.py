@@ -81,6 +81,9 @@ def prepare(context, method: str = "auto") -> Prepared:
     cams = None
     if s.use_scene_cameras and s.camera_collection is not None:
         cams = cameras_io.collection_cameras(s.camera_collection, settings.train_resolution)
+        if cams is None:
+            notes.append(f"the camera collection '{s.camera_collection.name}' holds no "
+                         f"cameras: {settings.n_views} cameras around the object were used")
     work = partial(_work, reference, base, cams, settings, levels, s.level, method,
                    str(s.preset).lower(), notes)
     return Prepared(src, base_obj, work)

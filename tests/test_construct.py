@@ -391,3 +391,22 @@ def test_seams_split_in_a_file_are_not_parts():
     split = TriMesh(v[f.reshape(-1)], np.arange(3 * len(f)).reshape(-1, 3))
     assert split.n_components == len(f)
     assert oriented_reference(split)[1] == []
+
+
+def test_loose_vertices_and_repeated_faces_are_left_out():
+    """A stray vertex far away (a loose vertex or edge) would shrink the object in the unit
+    frame, and repeated faces make edges look non-manifold: both are left out and said, and
+    what remains is the clean mesh, so the construction is the clean mesh's."""
+    from core.construct.frame import oriented_reference
+
+    v, f = icosphere(2)
+    far = np.vstack([v[:5], [[100.0, 0, 0], [100.0, 1, 0]], v[5:]])      # two loose vertices
+    remap = np.where(f >= 5, f + 2, f)
+    messy = TriMesh(far, np.vstack([remap, remap[:3][:, ::-1], np.roll(remap[7:8], 1, 1)]))
+    got, warnings = oriented_reference(messy)
+    clean, none = oriented_reference(TriMesh(v, f))
+    assert none == []
+    assert warnings == ["2 vertices in no face (loose vertices or edges) were left out",
+                        "4 repeated faces (the same three vertices again) were left out"]
+    np.testing.assert_array_equal(got.vertices, clean.vertices)
+    np.testing.assert_array_equal(got.faces, clean.faces)

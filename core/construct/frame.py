@@ -45,8 +45,9 @@ def oriented_reference(reference: TriMesh) -> tuple[TriMesh, list[str]]:
     """The reference with consistent winding, closed parts facing out (``core.orient``), and
     in words what was turned, which edges no surface can keep and whether it has many parts
     (the caller's mesh is not changed)."""
+    reference, warnings = _without_loose_and_duplicates(reference)
     o = orient(reference)
-    warnings = o.warnings()
+    warnings += o.warnings()
     parts = welded(reference).n_components      # seams split in the file are not parts
     if parts >= MANY_PARTS:
         warnings.append(f"the input has {parts} separate parts: the base keeps every one, so "
@@ -56,6 +57,29 @@ def oriented_reference(reference: TriMesh) -> tuple[TriMesh, list[str]]:
         warnings.append(f"the input has {nm} non-manifold edges (three or more faces on one "
                         "edge): the base and the micro-mesh cannot follow them exactly")
     return o.mesh, warnings
+
+
+def _without_loose_and_duplicates(mesh: TriMesh) -> tuple[TriMesh, list[str]]:
+    """``mesh`` without vertices no face uses (they would move the unit frame: a stray point
+    far away shrinks the object in every view) and without repeated faces (the same three
+    vertices again, in any order), and what was left out, in words."""
+    faces = mesh.faces
+    _, first = np.unique(np.sort(faces, axis=1), axis=0, return_index=True)
+    repeated = len(faces) - len(first)
+    faces = faces[np.sort(first)]
+    used = np.zeros(mesh.n_vertices, bool)
+    used[faces] = True
+    loose = int((~used).sum())
+    warnings = []
+    if loose:
+        warnings.append(f"{loose} vertices in no face (loose vertices or edges) were left out")
+    if repeated:
+        warnings.append(f"{repeated} repeated faces (the same three vertices again) were left "
+                        "out")
+    if not (loose or repeated):
+        return mesh, warnings
+    index = np.cumsum(used) - 1
+    return TriMesh(mesh.vertices[used], index[faces]), warnings
 
 
 def check_inputs(reference: TriMesh, base: TriMesh) -> None:

@@ -33,6 +33,7 @@ from .schedule import Schedule
 from .state import RunState
 from .step import step
 from .subdivision import subdivide
+from .views import check_views
 from .types import ConstructError, ConstructResult, Progress
 
 
@@ -125,6 +126,8 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     rng = np.random.default_rng(s.seed)
     t_setup = time.perf_counter()
     run = _setup(reference, base, cameras, s, dev, should_stop, fixed)
+    if cameras is not None:
+        warnings += check_views(run.scene.ref, run.scene.cams, dev)
     run.timer.times["setup"] = time.perf_counter() - t_setup
     if base_report is not None:
         run.timer.times["base"] = base_report["time_s"]

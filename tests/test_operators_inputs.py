@@ -1,0 +1,151 @@
+"""Sources and cameras as artists leave them, in the bpy wheel: shape keys, mesh data shared by
+two objects, loose vertices, objects of 1e-6 and 1e6 units, an empty camera collection and
+cameras inside the object. Each case gives a result or a clear word, and the source is never
+changed."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+import micromesh_path  # noqa: E402
+
+pkg = micromesh_path.ensure_package()
+from micromesh.core.construct.frame import unit_cameras  # noqa: E402
+from micromesh.core.construct.views import view_coverage  # noqa: E402
+from micromesh.core.mesh import unit_sphere_normalization  # noqa: E402
+from micromesh.core.settings import preset  # noqa: E402
+from micromesh.operators import bl_mesh, cameras_io, writeback  # noqa: E402
+
+TINY = ("iterations=4 subdivide_at=2 max_level=1 train_resolution=48 n_views=4 "
+        "views_per_iter=2 eval_views=2 eval_resolution=48 lod_resolution=48")
+
+
+@pytest.fixture(scope="module", autouse=True)
+def registered():
+    pkg.register()
+    yield
+    pkg.unregister()
+
+
+@pytest.fixture
+def scene():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=3, radius=1.0, location=(1.0, 0.0, 0.0))
+    src = bpy.context.active_object
+    src.name = "rock"
+    s = bpy.context.scene.micromesh
+    s.source, s.base = src, None
+    s.decimate_mode, s.ratio, s.base_max_error = "RATIO", 1 / 8, 0.0
+    s.budget_mode, s.budget_value = "RATIO", 1.0
+    s.camera_count, s.overrides = 4, TINY
+    return bpy.context.scene
+
+
+def _vertices(data) -> np.ndarray:
+    """Coordinates of a mesh's vertices or of a shape key's points."""
+    points = data.data if isinstance(data, bpy.types.ShapeKey) else data.vertices
+    v = np.empty(3 * len(points), np.float32)
+    points.foreach_get("co", v)
+    return v.reshape(-1, 3)
+
+
+def _construct(scene) -> dict:
+    assert bpy.ops.micromesh.construct(method="OPTIMIZE") == {"FINISHED"}
+    res = bpy.data.objects[f"{scene.micromesh.source.name}_micromesh"]
+    return writeback.load_outcome(res).metrics
+
+
+def test_shape_keys_are_mixed_in_and_said(scene):
+    src = scene.micromesh.source
+    src.shape_key_add(name="Basis")
+    key = src.shape_key_add(name="Wide")
+    for p in key.data:
+        p.co.x *= 2.0
+    key.value = 1.0
+    before = [_vertices(k) for k in src.data.shape_keys.key_blocks]
+    m = _construct(scene)
+    assert "'rock' has 1 shape keys: their current mix (as the viewport shows it) was used" \
+        in m["warnings"]
+    out = writeback.load_outcome(bpy.data.objects["rock_micromesh"]).micromesh
+    x = out.tessellate().vertices[:, 0]
+    assert x.max() - x.min() > 3.5                     # the wide mix, 4 units across
+    after = [_vertices(k) for k in src.data.shape_keys.key_blocks]
+    assert all(np.array_equal(a, b) for a, b in zip(before, after)) and key.value == 1.0
+
+
+def test_mesh_data_shared_by_two_objects(scene):
+    """Construct on one of two objects that share their mesh: the result stands where that
+    object is; the shared mesh and the other object are unchanged."""
+    src = scene.micromesh.source
+    twin = bpy.data.objects.new("twin", src.data)
+    scene.collection.objects.link(twin)
+    twin.location = (-5.0, 0.0, 0.0)
+    assert src.data.users == 2
+    before = _vertices(src.data)
+    _construct(scene)
+    out = writeback.load_outcome(bpy.data.objects["rock_micromesh"]).micromesh
+    x = out.tessellate().vertices
+    np.testing.assert_allclose((x.max(0) + x.min(0)) / 2, (1.0, 0.0, 0.0), atol=0.1)
+    assert np.array_equal(_vertices(src.data), before) and twin.data == src.data
+    assert tuple(twin.location) == (-5.0, 0.0, 0.0) and "twin_micromesh" not in bpy.data.objects
+
+
+def test_loose_vertices_and_edges_are_left_out(scene):
+    """Loose vertices and an edge far away neither move the frame nor reach the result."""
+    import bmesh
+
+    src = scene.micromesh.source
+    bm = bmesh.new()
+    bm.from_mesh(src.data)
+    a, b = bm.verts.new((50.0, 0.0, 0.0)), bm.verts.new((50.0, 9.0, 0.0))
+    bm.edges.new((a, b))
+    bm.verts.new((-40.0, 0.0, 0.0))
+    bm.to_mesh(src.data)
+    bm.free()
+    m = _construct(scene)
+    assert "3 vertices in no face (loose vertices or edges) were left out" in m["warnings"]
+    out = writeback.load_outcome(bpy.data.objects["rock_micromesh"]).micromesh
+    assert np.abs(out.tessellate().vertices - (1.0, 0.0, 0.0)).max() < 1.2
+    assert m["psnr"] > 25
+
+
+@pytest.mark.parametrize("size", [1e-6, 1e6])
+def test_placed_cameras_see_objects_of_any_size(scene, size):
+    """Place Cameras around an object of 1e-6 or 1e6 units: brought into the unit frame as
+    a construction brings them, every camera sees the whole front of the object."""
+    src = scene.micromesh.source
+    src.data.transform(np.diag([size, size, size, 1.0]).tolist())
+    src.location = (3 * size, 0.0, 0.0)
+    scene.micromesh.camera_count = 6
+    assert bpy.ops.micromesh.place_cameras() == {"FINISHED"}
+    world = bl_mesh.mesh_to_arrays(src)
+    norm = unit_sphere_normalization(world.vertices)
+    cams = unit_cameras(cameras_io.collection_cameras(scene.micromesh.camera_collection, 64),
+                        norm, preset("fast"), 64)
+    unit = world.with_vertices(norm.apply(world.vertices))
+    covered, back = view_coverage(unit, cams, "cpu")
+    assert (covered > 0.15 * 96 * 96).all() and (back == 0).all(), (covered, back)
+
+
+def test_an_empty_camera_collection_is_said(scene):
+    s = scene.micromesh
+    s.camera_collection = bpy.data.collections.new("Empty Cameras")
+    s.use_scene_cameras = True
+    m = _construct(scene)
+    assert ("the camera collection 'Empty Cameras' holds no cameras: 4 cameras around the "
+            "object were used") in m["warnings"]
+
+
+def test_cameras_inside_the_object_are_said(scene):
+    s = scene.micromesh
+    assert bpy.ops.micromesh.place_cameras() == {"FINISHED"}
+    for cam in cameras_io.camera_objects(s.camera_collection):   # into the middle, same aim
+        cam.location = (1.0, 0.0, 0.0)
+    s.use_scene_cameras = True
+    m = _construct(scene)
+    assert any(w.startswith("every camera that sees the object (4 of 4) sees only the back")
+               for w in m["warnings"]), m["warnings"]
+    assert json.dumps(m)                                  # the result is there, and said
