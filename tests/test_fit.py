@@ -110,3 +110,25 @@ def test_large_reference_faces_are_sampled_densely():
     Xs = sparse.tessellate().vertices
     err_sparse = np.abs(Xs[:, 2] - 0.4 * np.abs(Xs[:, 0] - 0.5)).max()
     assert err_dense < 0.01 and err_sparse > 2 * err_dense, (err_dense, err_sparse)
+
+
+def test_the_solve_matches_a_factorisation_and_falls_back_to_one():
+    """CG from a start point gives the factorisation's answer; where it cannot converge in
+    the iterations allowed, the factorisation's answer is returned."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from core.fit import solve_normal_equations
+
+    bv, bf = primitives.icosphere(4)
+    L = uniform_laplacian(len(bv), bf)
+    M = (sp.eye(len(bv)) * 1e-3 + L.T @ L).tocsr()
+    b = np.random.default_rng(0).standard_normal(len(bv))
+    exact = spla.spsolve(M.tocsc(), b)
+    got = solve_normal_equations(M, b, np.zeros(len(bv)))
+    np.testing.assert_allclose(got, exact, rtol=1e-6, atol=1e-8 * np.abs(exact).max())
+    steps = []
+    short = solve_normal_equations(M, b, np.zeros(len(bv)), maxiter=2,
+                                   callback=lambda _: steps.append(1))
+    assert len(steps) == 2
+    np.testing.assert_allclose(short, exact, rtol=1e-9, atol=1e-12 * np.abs(exact).max())
