@@ -62,6 +62,9 @@ def process(bpy, source, args, settings, out, interrupt: Interrupt) -> dict:
         coll = cameras_io.place_cameras(bpy.context.scene, reference, args.cameras,
                                         settings.camera_radius, settings.fov_y_deg)
         cams = cameras_io.collection_cameras(coll, settings.train_resolution)
+    if args.method != "projection":
+        from micromesh.core.construct.estimate import estimate
+        print(f"[{name}] estimate: {estimate(reference.n_faces, settings).text()}", flush=True)
     progress = PhaseProgress(name)
     interrupt.constructing = True
     try:

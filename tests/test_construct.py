@@ -58,6 +58,7 @@ def test_short_run_beats_staged_baseline(scene):
     seen = []
     r = construct(ref, base, None, s, progress=seen.append)
     assert r.metrics["psnr"] > b.metrics["psnr"] + 0.5, (r.metrics["psnr"], b.metrics["psnr"])
+    assert r.metrics["estimate"]["seconds"] > 0 and r.metrics["peak_memory_bytes"] > 2 ** 24
     assert r.metrics["cracks"] == 0 and b.metrics["cracks"] == 0
     assert (r.micromesh.levels == 2).all()
     assert len(seen) == 61 and seen[-1].phase == "done"

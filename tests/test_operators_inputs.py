@@ -149,3 +149,12 @@ def test_cameras_inside_the_object_are_said(scene):
     assert any(w.startswith("every camera that sees the object (4 of 4) sees only the back")
                for w in m["warnings"]), m["warnings"]
     assert json.dumps(m)                                  # the result is there, and said
+
+
+def test_the_panel_shows_the_estimate(scene):
+    from micromesh.ui import panels
+
+    text = panels._estimate_text(bpy.context)
+    assert text.startswith("Estimate: about ") and "for 320 micro-triangles" in text     # 1x its 320 faces
+    scene.micromesh.overrides = "no_such_setting=1"
+    assert panels._estimate_text(bpy.context) == ""

@@ -113,6 +113,27 @@ class MICROMESH_PT_construct(_Panel, bpy.types.Panel):
             layout.operator("micromesh.cancel_construct", icon="CANCEL")
         else:
             layout.operator("micromesh.construct", icon="PLAY")
+            text = _estimate_text(context)
+            if text:
+                layout.label(text=text, icon="TIME")
+
+
+def _estimate_text(context) -> str:
+    """The construction's time and memory estimate for the source (core.construct.estimate),
+    or "" where there is no source or the settings do not read."""
+    from ..core.construct.estimate import estimate
+    from ..operators import base_ops, construct_op
+
+    src = base_ops.source_object(context)
+    if src is None or src.type != "MESH":
+        return ""
+    me = src.data
+    faces = len(me.loops) - 2 * len(me.polygons)          # its triangles, counted in O(1)
+    try:
+        settings = construct_op.scene_settings(context.scene)
+    except (ValueError, TypeError):
+        return ""
+    return "Estimate: " + estimate(max(faces, 1), settings).text()
 
 
 class MICROMESH_PT_result(_Panel, bpy.types.Panel):

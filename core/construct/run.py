@@ -23,7 +23,9 @@ from ..mesh import TriMesh, unit_sphere_normalization
 from ..micromesh import MicroMesh
 from ..render import warm_up
 from ..settings import ConstructSettings
+from ..runtime.machine import available_memory_bytes, peak_resident_bytes
 from ..runtime.threads import set_threads
+from .estimate import check_fits, estimate
 from .finalise import finalise
 from .frame import (check_inputs, check_reference, device as torch_device, fixed_levels,
                     oriented_reference, prepare_base, unit_cameras)
@@ -111,6 +113,8 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
             raise ConstructError("fixed levels need the base mesh they belong to")
     else:
         check_inputs(reference, base)
+    guess = estimate(reference.n_faces, s)
+    check_fits(guess, available_memory_bytes())
     set_threads(s.threads)
     dev = torch_device(s.device)
     # Compile the renderer's kernels first: a fresh checkout's JIT (about a minute) must not
@@ -172,6 +176,8 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     run.check_stop()
     result = finalise(run, params, reference, base, t_start, it_done, schedule.stopped_early)
     result.metrics["warnings"] = warnings
+    result.metrics["estimate"] = {"seconds": guess.seconds, "peak_bytes": guess.peak_bytes}
+    result.metrics["peak_memory_bytes"] = peak_resident_bytes()
     if base_report is not None:
         result.metrics["base"] = base_report
     if progress is not None:

@@ -1,0 +1,94 @@
+"""Time and peak memory of a construction, estimated from the input's face count and the
+settings before any heavy work, and the refusal of a run that will not fit in memory.
+
+The model is linear in the work each phase does (faces decimated, micro-triangles rendered
+per iteration and view pixel, micro-triangles fitted, faces rendered for the metrics); its
+coefficients were measured on the developers' 2-core x86-64 machine with
+``bench/scale_bench.py`` (20k to 2M faces, the `default` preset), which prints the estimate
+beside each measurement. Times are for that machine and scale with the threads given; memory
+is the process's peak resident size.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..settings import ConstructSettings
+from .types import ConstructError
+
+_MB = 2 ** 20
+
+# Seconds (2 cores): per input face for the base builder and the metrics; per micro-triangle
+# and per view pixel of one iteration; per micro-triangle for the fit; fixed start-up.
+_T_FIXED = 8.0
+_T_BASE_PER_FACE = 1.0e-4
+_T_ITER_FIXED = 0.04
+_T_ITER_PER_MICRO = 4.0e-7
+_T_ITER_PER_PIXEL = 1.2e-7
+_T_FIT_PER_MICRO = 6.0e-5
+_T_METRICS_PER_FACE = 2.0e-5
+# Bytes: the interpreter and libraries, per input face (the reference, its topology, the
+# base builder's quadrics and heap, the metrics' samples), per micro-triangle (micro-mesh,
+# optimiser state, fit samples and normal equations), per cached image pixel.
+_M_FIXED = 700 * _MB
+_M_PER_FACE = 2000
+_M_PER_MICRO = 1500
+_M_PER_PIXEL = 40
+
+
+@dataclass
+class Estimate:
+    """Estimated wall seconds (``phases``: seconds per phase) and peak memory in bytes."""
+    seconds: float
+    peak_bytes: float
+    micro_triangles: int
+    phases: dict = field(default_factory=dict)
+
+    def text(self) -> str:
+        return (f"about {_duration(self.seconds)} and {self.peak_bytes / 2 ** 30:.1f} GB of "
+                f"memory for {self.micro_triangles:,} micro-triangles")
+
+
+def micro_triangles(reference_faces: int, s: ConstructSettings) -> int:
+    """The micro-triangles the budget allows (without a budget: four per face per level)."""
+    kind, amount = s.budget(reference_faces)
+    if kind == "micro_triangles":
+        return int(amount)
+    if kind == "bytes":
+        return int(amount / 2.0)     # about 2 bytes per micro-triangle with its base share
+    return int(reference_faces * s.base_ratio * 4 ** s.max_level)
+
+
+def estimate(reference_faces: int, s: ConstructSettings) -> Estimate:
+    """Time and peak memory of constructing a micro-mesh of a ``reference_faces`` input."""
+    m = micro_triangles(reference_faces, s)
+    train_pixels = s.views_per_iter * s.train_resolution ** 2
+    # Coarse to fine: over the schedule the micro-mesh holds about half its final triangles.
+    per_iter = _T_ITER_FIXED + _T_ITER_PER_MICRO * 0.5 * m + _T_ITER_PER_PIXEL * train_pixels
+    phases = {"base": _T_BASE_PER_FACE * reference_faces,
+              "optimize": s.iterations * per_iter,
+              "fit": _T_FIT_PER_MICRO * m if s.final_fit else 0.0,
+              "metrics": _T_METRICS_PER_FACE * reference_faces if s.compute_metrics else 0.0}
+    seconds = _T_FIXED + sum(phases.values())
+    if s.time_limit_s > 0:
+        seconds = min(seconds, s.time_limit_s + phases["fit"] + phases["metrics"] + _T_FIXED)
+    images = s.n_views * s.train_resolution ** 2 + s.eval_views * s.eval_resolution ** 2
+    peak = _M_FIXED + _M_PER_FACE * reference_faces + _M_PER_MICRO * m + _M_PER_PIXEL * images
+    return Estimate(seconds, float(peak), m, phases)
+
+
+def check_fits(guess: Estimate, available_bytes: float | None) -> None:
+    """Refuse, with the estimate and what to change, a run that will not fit in memory."""
+    if available_bytes is None or guess.peak_bytes <= available_bytes:
+        return
+    half = max(1, guess.micro_triangles // 2)
+    raise ConstructError(
+        f"this construction needs {guess.text()}, but only "
+        f"{available_bytes / 2 ** 30:.1f} GB are available: set a smaller budget (e.g. "
+        f"budget_micro_triangles={half}, or --budget {half} in batch.py), decimate the input "
+        "first, or close other programs")
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    return f"{seconds / 60:.0f} min" if seconds < 5400 else f"{seconds / 3600:.1f} h"
