@@ -1,0 +1,33 @@
+"""Least-squares fitting of micro-displacements to the reference surface (ours).
+
+Projection baking samples the reference at each micro-vertex along its direction: the
+piecewise-linear micro-surface interpolates those samples, so between them it cuts corners.
+Fitting instead chooses all displacements together so that the micro-surface passes as close
+as possible to the whole reference: dense samples on the reference (at least ``density`` per
+micro-triangle, area-weighted), each matched to its closest point on the current micro-surface
+(micro-triangle and barycentrics), and the point-to-plane residual along the reference normal
+
+    r = n · (Σ_k b_k (P_k + D_k d_k) − s)
+
+minimised in the least-squares sense together with ``slopes`` times the same weights on
+
+    e = n · (X_b − X_a)   for each edge (a, b) of the matched micro-triangle,
+
+which asks that triangle to lie in the sample's tangent plane, so that its normal, which flat
+shading shows, is the reference's (distance alone lets a triangle tilt while its points stay
+close), and ``smoothness`` · |L d|² (the micro
+Laplacian, which keeps vertices without samples in place and damps noise). The matches are
+renewed ``iterations`` times (an ICP on the displacements). The sparse normal equations are
+solved by preconditioned conjugate gradients (:func:`solve_normal_equations`). Lengths are
+those of the inputs (the construction calls it in the unit-sphere frame).
+"""
+from __future__ import annotations
+
+from .lsq import fit_displacements
+from .residuals import surface_errors
+from .samples import FitError, fit_samples, reference_samples
+from .solve import solve_normal_equations
+from .system import normal_equations
+
+__all__ = ["FitError", "fit_displacements", "fit_samples", "normal_equations", "reference_samples",
+           "solve_normal_equations", "surface_errors"]
