@@ -33,6 +33,7 @@ RANGES: dict[str, tuple[float, float, bool, bool]] = {
     "grad_clip": (0, INF, True, False),
     "fit_smoothness": (0, 1e3, True, False),
     "fit_slopes": (0, 1e3, True, False),
+    "fit_base_stiffness": (0, 1e6, True, False),
     "residual_lod": (0, 1, True, True),
     "w_render": (0, INF, True, False),
     "w_sv": (0, INF, True, False),

@@ -267,9 +267,9 @@ def test_large_micro_laplacians_use_cg(scene, monkeypatch):
     a = construct(ref, base, None, s)
     monkeypatch.setattr(lap, "SPLU_MAX_VERTICES", 0)       # every screened solve by CG
     b = construct(ref, base, None, s)
-    scale = np.abs(a.micromesh.displacements).max()
-    np.testing.assert_allclose(b.micromesh.displacements, a.micromesh.displacements,
-                               atol=1e-3 * scale)
+    # The same surface (displacements alone depend on how the fit moved the base).
+    xa, xb = a.micromesh.micro_vertex_positions(), b.micromesh.micro_vertex_positions()
+    np.testing.assert_allclose(xb, xa, atol=1e-3 * np.ptp(xa, axis=0).max())
 
 
 def test_a_reference_with_faces_wound_both_ways_is_turned_and_said(scene):

@@ -14,7 +14,7 @@ from ..bounds import baked, tight_bounds, unit_bounds
 from ..mesh import TriMesh
 from ..micromesh import MicroMesh
 from ..microtopology import balance_levels
-from ..fit import fit_displacements, fit_samples, surface_errors
+from ..fit import fit_micromesh, fit_samples, surface_errors
 from .choose_levels import final_levels, residual_exchange
 from .evaluate import evaluate
 from .frame import to_caller_frame
@@ -59,25 +59,34 @@ def fitted(run: RunState, mm: MicroMesh) -> MicroMesh:
     are kept only where they lower the shading error (squared normal differences) of the same
     reference samples: where the residual model misjudges a mesh (smooth ones, whose residual
     falls faster than it assumes), the first fit stays. ``run.notes["residual_lod"]`` says
-    what happened."""
+    what happened. Last, the base vertices are fitted with the displacements
+    (``fit_base_stiffness``; not where the base is frozen)."""
     ref = run.scene.ref
     with run.timer.phase("fit"):
         samples = fit_samples(mm, ref)
-        mm = mm.with_displacements(fit_displacements(mm, ref, run.s.fit_smoothness,
-                                                     samples=samples, slopes=run.s.fit_slopes))
-    if not (run.s.residual_lod > 0 and run.fixed is None and run.cost is not None):
-        return mm
-    run.check_stop()
+        mm = _fit(run, mm, samples)
+    if run.s.residual_lod > 0 and run.fixed is None and run.cost is not None:
+        run.check_stop()
+        mm, samples = _exchanged(run, mm, samples)
+    if run.s.fit_base_stiffness > 0 and run.fixed is None:
+        run.check_stop()
+        with run.timer.phase("fit"):
+            mm = _fit(run, mm, samples, run.s.fit_base_stiffness, rounds=1)
+    return mm
+
+
+def _exchanged(run: RunState, mm: MicroMesh, samples) -> tuple[MicroMesh, tuple]:
+    """The residual exchange of levels, fitted, kept where it lowers the shading error; the
+    micro-mesh kept and the samples that fit it."""
     with run.timer.phase("residual_lod"):
         dist, normal = surface_errors(mm, samples)
         new = residual_exchange(run, mm.levels, dist)
     if np.array_equal(new, mm.levels):
-        return mm
+        return mm, samples
     with run.timer.phase("fit"):
         moved = mm.with_levels(new)
-        moved = moved.with_displacements(fit_displacements(
-            moved, ref, run.s.fit_smoothness, samples=fit_samples(moved, ref),
-            slopes=run.s.fit_slopes))
+        moved_samples = fit_samples(moved, run.scene.ref)
+        moved = _fit(run, moved, moved_samples)
     with run.timer.phase("residual_lod"):
         after = surface_errors(moved, samples)[1].sum()
     keep = bool(after < normal.sum())
@@ -85,4 +94,12 @@ def fitted(run: RunState, mm: MicroMesh) -> MicroMesh:
                                  "faces_down": int((new < mm.levels).sum()), "kept": keep,
                                  "shading_error_before": float(normal.sum()),
                                  "shading_error_after": float(after)}
-    return moved if keep else mm
+    return (moved, moved_samples) if keep else (mm, samples)
+
+
+def _fit(run: RunState, mm: MicroMesh, samples, base_stiffness: float = 0.0,
+         rounds: int = 2) -> MicroMesh:
+    """The least-squares fit with the run's settings (the base vertices held with
+    ``base_stiffness``, fixed at 0); one round suffices from an already fitted ``mm``."""
+    return fit_micromesh(mm, run.scene.ref, run.s.fit_smoothness, rounds, samples=samples,
+                         slopes=run.s.fit_slopes, base_stiffness=base_stiffness)

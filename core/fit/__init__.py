@@ -1,4 +1,5 @@
-"""Least-squares fitting of micro-displacements to the reference surface (ours).
+"""Least-squares fitting of a micro-mesh to the reference surface (ours): its displacements,
+and its base vertices where they may move.
 
 Projection baking samples the reference at each micro-vertex along its direction: the
 piecewise-linear micro-surface interpolates those samples, so between them it cuts corners.
@@ -17,17 +18,20 @@ which asks that triangle to lie in the sample's tangent plane, so that its norma
 shading shows, is the reference's (distance alone lets a triangle tilt while its points stay
 close), and ``smoothness`` · |L d|² (the micro
 Laplacian, which keeps vertices without samples in place and damps noise). The matches are
-renewed ``iterations`` times (an ICP on the displacements). The sparse normal equations are
+renewed ``iterations`` times (an ICP on the displacements). With ``base_stiffness`` the base
+vertices are unknowns too (``fit_micromesh``): P_k is then their interpolation, and a base vertex
+may slide where one displacement per micro-vertex cannot reach (a crease between two of its
+faces), held in place by ``base_stiffness``. The sparse normal equations are
 solved by preconditioned conjugate gradients (:func:`solve_normal_equations`). Lengths are
 those of the inputs (the construction calls it in the unit-sphere frame).
 """
 from __future__ import annotations
 
-from .lsq import fit_displacements
+from .lsq import fit_displacements, fit_micromesh
 from .residuals import surface_errors
 from .samples import FitError, fit_samples, reference_samples
 from .solve import solve_normal_equations
 from .system import normal_equations
 
-__all__ = ["FitError", "fit_displacements", "fit_samples", "normal_equations", "reference_samples",
-           "solve_normal_equations", "surface_errors"]
+__all__ = ["FitError", "fit_displacements", "fit_micromesh", "fit_samples", "normal_equations",
+           "reference_samples", "solve_normal_equations", "surface_errors"]

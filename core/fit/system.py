@@ -1,5 +1,13 @@
 """The normal equations of one fit round: samples matched to the micro-surface, the
-point-to-plane and slope rows, the smoothness term."""
+point-to-plane and slope rows, the smoothness term, and the base vertices as unknowns too.
+
+Every row is a residual n · (Σ_k c_k X_k) − t along one sample's normal n, over micro-vertex
+positions X_k = Σ_j W_kj V_j + D_k d_k (``W``: the topology's interpolation of the base
+vertices V): a point row has the barycentrics of the sample's closest point as c and n·s as
+t; a slope row has −1 and +1 at the ends of one edge of the matched micro-triangle and t = 0.
+So a row is linear in the displacements d (coefficients c_k n·D_k) and in the base vertices
+(coefficients n_a (C W)_j for coordinate a).
+"""
 from __future__ import annotations
 
 import numpy as np
@@ -10,27 +18,63 @@ from ..laplacian import uniform_laplacian
 from ..micromesh import MicroMesh
 
 
-def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, slopes: float
+def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, slopes: float,
+                     base_stiffness: float = 0.0, offsets: np.ndarray | None = None
                      ) -> tuple[sp.csr_matrix, np.ndarray]:
-    """(M (n, n), b (n,)) of one fit round: the samples matched to their closest points on
-    the micro-surface of displacements ``d``, then the weighted least-squares system."""
-    P, D = mm.micro_vertex_base_positions(), mm.micro_vertex_directions()
+    """(M, b) of one fit round: the samples matched to their closest points on the
+    micro-surface of displacements ``d`` (and base vertices moved by ``offsets`` (nb, 3)),
+    then the weighted least-squares system.
+
+    Unknowns: the displacements (n,); with ``base_stiffness`` > 0 also increments of the base
+    offsets (3 nb, x then y then z), held by ``base_stiffness`` · (weight per base vertex) ·
+    |offsets|². M is (n, n) or (n + 3 nb, n + 3 nb).
+    """
+    W = mm.topology.interp
+    n, nb = mm.n_vertices, mm.base.n_vertices
+    offsets = np.zeros((nb, 3)) if offsets is None else offsets
+    P, D = W @ (mm.base.vertices + offsets), mm.micro_vertex_directions()
     T = mm.topology.triangles                  # the non-degenerate micro-triangles
-    n = mm.n_vertices
+    C, N, t, w = _rows(P + D * d[:, None], T, samples, slopes)
+    coo = C.tocoo()
+    A = sp.csr_matrix((coo.data * (N[coo.row] * D[coo.col]).sum(1), (coo.row, coo.col)),
+                      shape=C.shape)
+    rhs = t - sum(N[:, a] * (C @ P[:, a]) for a in range(3))
+    L = uniform_laplacian(n, T)
+    reg = [smoothness * (L.T @ L) + 1e-9 * sp.eye(n)]
+    prior = [1e-9 * d]
+    if base_stiffness > 0:
+        CW = (C @ W).tocsr()
+        A = sp.hstack([A] + [CW.multiply(N[:, a:a + 1]) for a in range(3)]).tocsr()
+        k = base_stiffness * w.sum() / nb
+        reg.append(k * sp.eye(3 * nb))
+        prior.append(-k * offsets.T.reshape(-1))        # holds the offsets, not the increments
+    AtW = A.T.multiply(w[None, :]).tocsr()
+    M = AtW @ A + sp.block_diag(reg)
+    return M.tocsr(), AtW @ rhs + np.concatenate(prior)
+
+
+def _rows(X: np.ndarray, T: np.ndarray, samples, slopes: float):
+    """(C (r, n) coefficients, N (r, 3) normals, t (r,) targets, w (r,) weights) of the point
+    rows and, with ``slopes`` > 0, the slope rows (weight ``slopes`` times the sample's)."""
     pts, normals, weights = samples
-    X = P + D * d[:, None]
+    s, n = len(pts), len(X)
     cp, tri, _ = ClosestPointIndex(X, T).query(pts)
     corners = T[tri]                                          # (s, 3)
     B = _barycentrics(cp, X[corners[:, 0]], X[corners[:, 1]], X[corners[:, 2]])
-    nD = np.einsum("sc,skc->sk", normals, D[corners])
-    nP = np.einsum("sc,skc->sk", normals, P[corners])
-    A, rhs, w = _point_rows(B, nD, nP, corners, n, (normals * pts).sum(1), weights)
+    rows, cols, vals = [np.repeat(np.arange(s), 3)], [corners.reshape(-1)], [B.reshape(-1)]
+    N, t, w = [normals], [(normals * pts).sum(1)], [weights]
     if slopes > 0:
-        A, rhs, w = _stack((A, rhs, w), _slope_rows(nD, nP, corners, n, slopes * weights))
-    AtW = A.T.multiply(w[None, :]).tocsr()
-    L = uniform_laplacian(n, T)
-    M = AtW @ A + smoothness * (L.T @ L) + 1e-9 * sp.eye(n)
-    return M.tocsr(), AtW @ rhs + 1e-9 * d
+        for e, (a, b) in enumerate(((0, 1), (1, 2), (2, 0))):
+            rows.append(np.repeat(np.arange((e + 1) * s, (e + 2) * s), 2))
+            cols.append(corners[:, [a, b]].reshape(-1))
+            vals.append(np.tile([-1.0, 1.0], s))
+            N.append(normals)
+            t.append(np.zeros(s))
+            w.append(slopes * weights)
+    r = s * (4 if slopes > 0 else 1)
+    C = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(r, n))
+    return C, np.concatenate(N), np.concatenate(t), np.concatenate(w)
 
 
 def _barycentrics(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -45,30 +89,3 @@ def _barycentrics(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) ->
     bw = np.where(ok, (d00 * d21 - d01 * d20) / den, 1 / 3)
     return np.stack([1.0 - bv - bw, bv, bw], 1)
 
-
-def _point_rows(B, nD, nP, corners, n, target, weights):
-    """Rows of the point-to-plane residuals: n·(Σ b_k (P_k + D_k d_k)) = n·s."""
-    s = len(B)
-    A = sp.csr_matrix(((B * nD).reshape(-1), (np.repeat(np.arange(s), 3), corners.reshape(-1))),
-                      shape=(s, n))
-    return A, target - (B * nP).sum(1), weights
-
-
-def _slope_rows(nD, nP, corners, n, weights):
-    """Rows of the slope residuals: n·(X_b − X_a) = 0 for the three edges of each matched
-    micro-triangle (X_k = P_k + D_k d_k)."""
-    s = len(nD)
-    rows = np.repeat(np.arange(3 * s), 2)
-    vals, cols, rhs = [], [], []
-    for a, b in ((0, 1), (1, 2), (2, 0)):
-        vals.append(np.stack([-nD[:, a], nD[:, b]], 1))
-        cols.append(np.stack([corners[:, a], corners[:, b]], 1))
-        rhs.append(nP[:, a] - nP[:, b])
-    A = sp.csr_matrix((np.concatenate(vals).reshape(-1), (rows, np.concatenate(cols).reshape(-1))),
-                      shape=(3 * s, n))
-    return A, np.concatenate(rhs), np.tile(weights, 3)
-
-
-def _stack(*blocks):
-    return (sp.vstack([b[0] for b in blocks]).tocsr(), np.concatenate([b[1] for b in blocks]),
-            np.concatenate([b[2] for b in blocks]))
