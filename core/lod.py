@@ -78,7 +78,6 @@ def chamfer_face_errors(micro_vertices: np.ndarray, micro_vertex_face: np.ndarra
 def _ring_min_max(levels: np.ndarray, ring: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Per face, min and max level over its one-ring (its own level where the ring is empty)."""
     ptr, idx = ring
-    n = len(levels)
     lo = levels.copy()
     hi = levels.copy()
     counts = np.diff(ptr)

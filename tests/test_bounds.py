@@ -10,7 +10,6 @@ from core.bounds import (
     BoundsError, DirectionBounds, micromesh_shell_volume, normalized_values, prismoid_volumes,
     shell_volume, tight_bounds,
 )
-from core.mesh import TriMesh
 from core.micromesh import MicroMesh
 
 

@@ -6,7 +6,6 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from shapes import icosahedron, torus
-from core.mesh import TriMesh
 from core.micromesh import MicroMesh, MicroMeshError, Tessellation
 from core.microtopology import (
     balance_levels, barycentric_weights, bird_order, snap_targets, umajor_index,
