@@ -59,6 +59,27 @@ def mesh_to_arrays(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph | None 
     return TriMesh(v, f)
 
 
+def mesh_uvs(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph | None = None
+             ) -> np.ndarray | None:
+    """(m, 3, 2) the active UV map at the corners of the evaluated mesh's triangles, in the
+    order of :func:`mesh_to_arrays`; None where the mesh has no UV map."""
+    if depsgraph is None:
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+    obj_eval = obj.evaluated_get(depsgraph)
+    mesh = obj_eval.to_mesh()
+    try:
+        if mesh is None or mesh.uv_layers.active is None:
+            return None
+        mesh.calc_loop_triangles()
+        loops = np.empty(3 * len(mesh.loop_triangles), dtype=np.int32)
+        mesh.loop_triangles.foreach_get("loops", loops)
+        uv = np.empty(2 * len(mesh.loops), dtype=np.float32)
+        mesh.uv_layers.active.data.foreach_get("uv", uv)
+    finally:
+        obj_eval.to_mesh_clear()
+    return uv.reshape(-1, 2)[loops].reshape(-1, 3, 2).astype(np.float64)
+
+
 def arrays_to_mesh(name: str, vertices: np.ndarray, faces: np.ndarray) -> bpy.types.Mesh:
     """A new mesh datablock with the given triangles (edges computed, validated)."""
     v = np.ascontiguousarray(vertices, dtype=np.float32).reshape(-1, 3)

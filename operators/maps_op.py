@@ -7,14 +7,15 @@ from __future__ import annotations
 
 import os
 import tempfile
+from functools import partial
 
 import bpy
 import numpy as np
 from bpy.props import IntProperty
 
-from ..core.maps import Maps, bake_maps, unit_directions
+from ..core.maps import Maps, bake_maps, transfer_texture, unit_directions
 from ..core.micromesh import MicroMesh
-from . import bl_mesh, job, writeback
+from . import bl_mesh, job, source_texture, writeback
 from .files_op import result_object
 
 GROUP = "MicroMesh Height Map"
@@ -127,7 +128,7 @@ def _material(name: str, normal: bpy.types.Image) -> bpy.types.Material:
     if bpy.app.version < (5, 0, 0):      # 5.0: materials always have nodes
         mat.use_nodes = True
     nodes = mat.node_tree.nodes
-    for node in [x for x in nodes if x.type in ("TEX_IMAGE", "NORMAL_MAP")]:
+    for node in [x for x in nodes if x.type in ("TEX_IMAGE", "NORMAL_MAP", "UVMAP")]:
         nodes.remove(node)
     tex = nodes.new("ShaderNodeTexImage")
     tex.image, tex.label = normal, "Micro-mesh normal map"
@@ -135,6 +136,16 @@ def _material(name: str, normal: bpy.types.Image) -> bpy.types.Material:
     nmap.uv_map = "UVMap"
     mat.node_tree.links.new(tex.outputs["Color"], nmap.inputs["Color"])
     return mat
+
+
+def bake_with_texture(mm: MicroMesh, resolution: int, texture, progress, should_stop):
+    """(maps, the source's texture on their atlas or None): the worker's part of Bake Maps."""
+    maps = bake_maps(mm, resolution, progress=progress, should_stop=should_stop)
+    color = None
+    if texture is not None:
+        progress({"phase": "texture", "iteration": 0, "total": 1})
+        color = transfer_texture(mm, maps, texture.mesh, texture.uv, texture.pixels)
+    return maps, color
 
 
 class MICROMESH_OT_bake_maps(bpy.types.Operator):
@@ -152,15 +163,22 @@ class MICROMESH_OT_bake_maps(bpy.types.Operator):
     def _work(self, context):
         res = result_object(context)
         out = writeback.load_outcome(res)
+        src = res.micromesh_source
         self._result, self._mm = res, out.micromesh
-        return lambda progress, stop: bake_maps(out.micromesh, self.resolution,
-                                                progress=progress, should_stop=stop)
+        self._texture = source_texture.read(src) if src is not None else None
+        return partial(bake_with_texture, out.micromesh, self.resolution, self._texture)
 
-    def _finish(self, context, maps: Maps):
+    def _finish(self, context, baked):
+        maps, color = baked
         src = self._result.micromesh_source or self._result
         name = f"{src.name}_maps"
         obj = maps_object(context, src, self._mm, maps, name)
-        self.report({"INFO"}, f"{obj.name}: {self.resolution}² height and normal maps")
+        what = "height and normal maps"
+        if color is not None:
+            img = source_texture.make_image(f"{name}_basecolor", color, self._texture)
+            source_texture.link_base_color(obj.data.materials[0], img)
+            what += f", and '{src.name}''s texture carried onto their atlas"
+        self.report({"INFO"}, f"{obj.name}: {self.resolution}² {what}")
         return {"FINISHED"}
 
     def execute(self, context):

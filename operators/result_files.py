@@ -8,10 +8,10 @@ import time
 
 import numpy as np
 
-from ..core.io.maps_files import base_gltf, png16
+from ..core.io.maps_files import base_gltf, png
 from ..core.io.micromesh_export import micromesh_files
-from ..core.maps import bake_maps, rebuild_error
-from . import maps_op, writeback
+from ..core.maps import rebuild_error
+from . import maps_op, source_texture, writeback
 from .sources import export_y_up
 
 
@@ -38,18 +38,28 @@ def write_report(outcome, out) -> None:
 def write_maps(context, outcome, source, resolution: int, out, progress) -> dict:
     """Height and normal maps: ``<source>_maps`` in the scene (images packed) and, for
     engines, ``NAME_height.exr``, ``NAME_normal.png`` (16-bit) and ``NAME_base.gltf`` (UVs,
-    normals, tangents, the normal map); how well the height map rebuilds the micro-mesh."""
+    normals, tangents, the normal map); where the source has a base-colour texture, it is
+    carried onto the atlas too (``NAME_basecolor.png``, the glTF's base colour); how well the
+    height map rebuilds the micro-mesh."""
     import bpy
 
     mm, name = outcome.micromesh, out.name
     t = time.perf_counter()
-    maps = bake_maps(mm, resolution, progress=progress)
-    maps_op.maps_object(context, source, mm, maps, f"{source.name}_maps")
+    texture = source_texture.read(source)
+    maps, color = maps_op.bake_with_texture(mm, resolution, texture, progress, lambda: False)
+    obj = maps_op.maps_object(context, source, mm, maps, f"{source.name}_maps")
     img = maps_op.image(f"{name}_height_file", maps.height, path=str(out.temp("_height.exr")))
     bpy.data.images.remove(img)
-    out.temp("_normal.png").write_bytes(png16(maps.normal))
+    out.temp("_normal.png").write_bytes(png(maps.normal))
+    color_uri = None
+    if color is not None:
+        tex = source_texture.make_image(f"{source.name}_maps_basecolor", color, texture)
+        source_texture.link_base_color(obj.data.materials[0], tex)
+        out.temp("_basecolor.png").write_bytes(png(np.clip(color, 0.0, 1.0), bits=8))
+        color_uri = f"{name}_basecolor.png"
     for path, data in base_gltf(out.final("_base.gltf"), mm, maps, f"{name}_normal.png",
-                                f"{name}_height.exr", y_up=export_y_up(source)):
+                                f"{name}_height.exr", y_up=export_y_up(source),
+                                base_color_uri=color_uri):
         out.temp(path.name[len(name):]).write_bytes(data)
     err = rebuild_error(mm, maps)
     return {"resolution": resolution, "time_s": time.perf_counter() - t,

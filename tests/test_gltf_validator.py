@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.io.maps_files import base_gltf, png16
+from core.io.maps_files import base_gltf, png
 from core.io.micromesh_export import write_micromesh
 from core.maps import bake_maps
 from core.mesh import TriMesh
@@ -49,8 +49,10 @@ def test_exports_validate_without_errors_or_warnings(tmp_path):
                 write_micromesh(f, mm, value_format=fmt, layout=layout, y_up=ext == ".glb")
                 files.append(str(f))
     maps = bake_maps(mm, 64)                       # the maps path: base + UVs + normal map
-    (tmp_path / "n.png").write_bytes(png16(maps.normal))
-    for path, data in base_gltf(tmp_path / "base.gltf", mm, maps, "n.png", "h.exr"):
+    (tmp_path / "n.png").write_bytes(png(maps.normal))
+    (tmp_path / "c.png").write_bytes(png(np.full((64, 64, 4), 0.5), bits=8))
+    for path, data in base_gltf(tmp_path / "base.gltf", mm, maps, "n.png", "h.exr",
+                                base_color_uri="c.png"):
         path.write_bytes(data)
     files.append(str(tmp_path / "base.gltf"))
     r = subprocess.run([node, str(SCRIPT), *files], capture_output=True, text=True,

@@ -73,3 +73,43 @@ def test_dilate_fills_rings_around_the_charts():
     img[4, 4], filled[4, 4] = 5.0, True
     out = dilate(img, filled, 2)
     assert out[2:7, 2:7].min() == 5.0 and out[0, 0] == 0.0
+
+
+def _spherical_uv(points: np.ndarray) -> np.ndarray:
+    p = points / np.linalg.norm(points, axis=-1, keepdims=True)
+    return np.stack([0.5 + np.arctan2(p[..., 1], p[..., 0]) / (2 * np.pi),
+                     0.5 + np.arcsin(np.clip(p[..., 2], -1, 1)) / np.pi], -1)
+
+
+def test_the_source_texture_is_carried_onto_the_atlas(bumpy):
+    """A source sphere textured through a latitude/longitude map (colours a smooth function
+    of the UVs): each filled texel of the carried texture holds the colour the source shows
+    at the texel's micro-surface point."""
+    from core.maps import TransferError, transfer_texture
+
+    src = TriMesh(*icosphere(5))
+    uv = _spherical_uv(src.vertices[src.faces])
+    seam = np.ptp(uv[..., 0], axis=1) > 0.5                  # faces across the date line
+    uv[seam, :, 0] = np.where(uv[seam, :, 0] < 0.5, uv[seam, :, 0] + 1.0, uv[seam, :, 0])
+    h, w = 256, 512
+    yy, xx = np.mgrid[0:h, 0:w]
+    v, u = (yy + 0.5) / h, (xx + 0.5) / w
+    image = np.stack([v, 0.5 + 0.5 * np.sin(2 * np.pi * u), 0.5 + 0.5 * np.cos(2 * np.pi * u)], -1)
+    flat = MicroMesh.flat(bumpy.base, bumpy.levels)          # on the sphere's own surface
+    maps = bake_maps(flat, 256)
+    color = transfer_texture(flat, maps, src, uv, image)
+    assert color.shape == (256, 256, 3) and color.dtype == np.float32
+    face, bary = texel_faces(maps.atlas, 256, 256)
+    filled = face >= 0
+    p = np.einsum("qk,qkc->qc", bary[filled], flat.base.vertices[flat.base.faces[face[filled]]])
+    want_uv = _spherical_uv(p)
+    want = np.stack([want_uv[:, 1], 0.5 + 0.5 * np.sin(2 * np.pi * want_uv[:, 0]),
+                     0.5 + 0.5 * np.cos(2 * np.pi * want_uv[:, 0])], -1)
+    # Away from the poles and the date line, where this test's own mapping is singular.
+    fair = ((np.abs(p[:, 2]) < 0.9 * np.linalg.norm(p, axis=1))
+            & (np.abs(want_uv[:, 0] - 0.5) < 0.4))
+    err = np.abs(color[filled] - want).max(1)[fair]
+    assert fair.mean() > 0.7
+    assert np.median(err) < 0.005 and np.percentile(err, 99.9) < 0.02, np.percentile(err, [50, 99.9])
+    with pytest.raises(TransferError):
+        transfer_texture(flat, maps, src, uv[:-1], image)

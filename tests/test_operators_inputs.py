@@ -158,3 +158,64 @@ def test_the_panel_shows_the_estimate(scene):
     assert text.startswith("Estimate: about ") and "for 320 micro-triangles" in text     # 1x its 320 faces
     scene.micromesh.overrides = "no_such_setting=1"
     assert panels._estimate_text(bpy.context) == ""
+
+
+def test_bake_maps_carries_the_source_texture_onto_the_atlas(scene):
+    """A source with UVs and an image in its material's Base Color: Bake Maps gives the maps
+    object that texture on its own atlas, linked to its Base Color; each texel holds the
+    colour the source shows at the texel's point."""
+    src = scene.micromesh.source
+    me = src.data
+    corner_vertex = np.empty(len(me.loops), np.int32)
+    me.loops.foreach_get("vertex_index", corner_vertex)
+    p = bl_mesh.mesh_arrays(me)[0][corner_vertex]
+    p /= np.linalg.norm(p, axis=1, keepdims=True)            # a latitude/longitude projection
+    uv = np.stack([0.5 + np.arctan2(p[:, 1], p[:, 0]) / (2 * np.pi),
+                   0.5 + np.arcsin(np.clip(p[:, 2], -1, 1)) / np.pi], 1)
+    me.uv_layers.new(name="UVMap").data.foreach_set("uv", uv.astype(np.float32).reshape(-1))
+    w = h = 64
+    img = bpy.data.images.new("paint", w, h)
+    yy, xx = np.mgrid[0:h, 0:w]
+    pixels = np.stack([(xx + 0.5) / w, (yy + 0.5) / h, np.full((h, w), 0.25),
+                       np.ones((h, w))], -1).astype(np.float32)
+    img.pixels.foreach_set(pixels.reshape(-1))
+    mat = bpy.data.materials.new("painted")
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    mat.node_tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    src.data.materials.append(mat)
+    assert bpy.ops.micromesh.construct(method="PROJECTION") == {"FINISHED"}
+    assert bpy.ops.micromesh.bake_maps(resolution=128) == {"FINISHED"}
+    obj = bpy.data.objects["rock_maps"]
+    mat = obj.data.materials[0]
+    bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    (link,) = bsdf.inputs["Base Color"].links
+    carried = link.from_node.image
+    assert carried.name == "rock_maps_basecolor" and carried.packed_file is not None
+    assert carried.colorspace_settings.name == img.colorspace_settings.name
+    got = np.empty(128 * 128 * 4, np.float32)
+    carried.pixels.foreach_get(got)
+    got = got.reshape(128, 128, 4)
+    # At each corner of the maps object, the carried texture holds about the colour the
+    # source shows at its nearest point (base vertices: the micro-surface is near them).
+    from micromesh.core.bake import nearest_points
+    from micromesh.core.maps import sample
+    from micromesh.core.maps.transfer import _barycentrics
+
+    me = obj.data
+    uv_maps = np.empty(2 * len(me.loops), np.float32)
+    me.uv_layers["UVMap"].data.foreach_get("uv", uv_maps)
+    corner_vertex = np.empty(len(me.loops), np.int32)
+    me.loops.foreach_get("vertex_index", corner_vertex)
+    pos = bl_mesh.mesh_arrays(me)[0][corner_vertex]          # maps object: identity transform
+    ref, ref_uv = bl_mesh.mesh_to_arrays(src), bl_mesh.mesh_uvs(src)
+    near, face, _ = nearest_points(pos, ref)
+    b = _barycentrics(near, ref.vertices[ref.faces[face]])
+    want = sample(pixels.astype(np.float64), np.einsum("qk,qkc->qc", b, ref_uv[face]))[:, :3]
+    have = sample(got.astype(np.float64), uv_maps.reshape(-1, 2).astype(np.float64))[:, :3]
+    close = np.abs(have - want).max(1) < 0.1
+    assert close.mean() > 0.8, close.mean()
+    assert np.ptp(have[:, 0]) > 0.5                          # a texture, not one colour

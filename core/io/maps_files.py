@@ -1,6 +1,8 @@
 """Files of the maps path, for engines: the normal map as a 16-bit PNG and the base mesh as a
 glTF with UVs, normals (the maps' unit directions) and the normal map as its material's
-``normalTexture``; the height map's file is named in the material's ``extras``. Row 0 of our
+``normalTexture`` (and the source's texture carried onto the atlas as its
+``baseColorTexture``, where there is one); the height map's file is named in the material's
+``extras``. Row 0 of our
 arrays is v = 0 (the bottom); PNG rows and glTF UVs start at the top, so both are flipped here.
 """
 from __future__ import annotations
@@ -18,25 +20,32 @@ from .gltf import Builder
 from .micromesh_export import Y_UP
 
 
-def png16(rgb: np.ndarray) -> bytes:
-    """A 16-bit RGB PNG of ``rgb`` (H, W, 3) in [0, 1], row 0 at the bottom."""
-    h, w = rgb.shape[:2]
-    q = np.rint(np.clip(rgb[::-1], 0.0, 1.0) * 65535).astype(">u2")
+def png(pixels: np.ndarray, bits: int = 16) -> bytes:
+    """An RGB or RGBA PNG (``pixels`` (H, W, 3 or 4) in [0, 1], row 0 at the bottom) of 8 or
+    16 bits per channel."""
+    h, w, c = pixels.shape
+    if c not in (3, 4) or bits not in (8, 16):
+        raise ValueError(f"png: (H, W, 3|4) pixels and 8 or 16 bits, got {pixels.shape}, {bits}")
+    top = (1 << bits) - 1
+    q = np.rint(np.clip(pixels[::-1], 0.0, 1.0) * top).astype(">u2" if bits == 16 else np.uint8)
     raw = np.concatenate([np.zeros((h, 1), np.uint8), q.reshape(h, -1).view(np.uint8)], 1)
 
     def chunk(kind: bytes, data: bytes) -> bytes:
         return struct.pack(">I", len(data)) + kind + data + \
             struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
 
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">2I5B", w, h, 16, 2, 0, 0, 0))
+    header = struct.pack(">2I5B", w, h, bits, 2 if c == 3 else 6, 0, 0, 0)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header)
             + chunk(b"IDAT", zlib.compress(raw.tobytes(), 6)) + chunk(b"IEND", b""))
 
 
 def base_gltf(path: Path, mm: MicroMesh, maps: Maps, normal_uri: str, height_uri: str,
-              y_up: bool = False) -> list[tuple[Path, bytes]]:
+              y_up: bool = False, base_color_uri: str | None = None
+              ) -> list[tuple[Path, bytes]]:
     """``path`` (.gltf) and its ``.bin``: the base split at the atlas' seams, with UVs,
-    normals and a material whose ``normalTexture`` is ``normal_uri`` (``y_up``: Blender's
-    Z-up turned into glTF's Y-up, as ``micromesh_export`` does)."""
+    normals and a material whose ``normalTexture`` is ``normal_uri`` and, where given,
+    whose ``baseColorTexture`` is ``base_color_uri`` (``y_up``: Blender's Z-up turned into
+    glTF's Y-up, as ``micromesh_export`` does)."""
     at = maps.atlas
     rot = Y_UP.T if y_up else np.eye(3)
     g = Builder()
@@ -51,11 +60,14 @@ def base_gltf(path: Path, mm: MicroMesh, maps: Maps, normal_uri: str, height_uri
     # normal map's +Y is "up in the image" in both, as Blender's own glTF exporter keeps it)
     uv = g.accessor(np.stack([at.uv[:, 0], 1.0 - at.uv[:, 1]], 1), "<f4", "uvs", target=34962)
     doc, blob = g.finish(path.with_suffix(".bin").name)
-    doc["images"] = [{"uri": normal_uri}]
+    doc["images"] = [{"uri": normal_uri}] + ([{"uri": base_color_uri}] if base_color_uri else [])
     doc["samplers"] = [{"magFilter": 9729, "minFilter": 9987, "wrapS": 33071, "wrapT": 33071}]
-    doc["textures"] = [{"source": 0, "sampler": 0}]
+    doc["textures"] = [{"source": i, "sampler": 0} for i in range(len(doc["images"]))]
+    pbr = {"metallicFactor": 0.0}
+    if base_color_uri:
+        pbr["baseColorTexture"] = {"index": 1}
     doc["materials"] = [{"name": f"{path.stem}_material", "normalTexture": {"index": 0},
-                         "pbrMetallicRoughness": {"metallicFactor": 0.0},
+                         "pbrMetallicRoughness": pbr,
                          "extras": {"heightMap": height_uri,
                                     "heightMapMeaning": "signed distance along the "
                                     "interpolated vertex normals, world units"}}]

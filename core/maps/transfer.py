@@ -1,0 +1,77 @@
+"""A texture of the source carried onto the base's atlas, so the baked asset keeps its look.
+
+Each atlas texel stands for a point of the micro-surface (the base point of its face and
+barycentrics, moved by the height map along the interpolated direction); the nearest point of
+the source surface gives the source triangle and barycentrics, its UVs the place where the
+source image is sampled (bilinear, as a renderer samples it). Texels outside the charts are
+bled from their neighbours like the other maps.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..bake import nearest_points
+from ..mesh import TriMesh
+from ..micromesh import MicroMesh
+from .atlas import dilate, texel_faces
+from .bake import Maps, sample, unit_directions
+
+
+class TransferError(ValueError):
+    """Inputs a texture cannot be carried over with."""
+
+
+def transfer_texture(mm: MicroMesh, maps: Maps, source: TriMesh, source_uv: np.ndarray,
+                     image: np.ndarray, padding: int = 4, chunk: int = 1 << 20) -> np.ndarray:
+    """The source's ``image`` (H, W, C, row 0 at v = 0) on ``maps``' atlas: (R, R, C) float32.
+
+    Args:
+        mm: the micro-mesh the maps were baked from (the frame of ``source``).
+        maps: its height map and atlas (:func:`core.maps.bake_maps`).
+        source: the textured surface, usually the construction's reference.
+        source_uv: (source.n_faces, 3, 2) the UVs of its triangles' corners.
+        image: its texture; any number of channels.
+    """
+    uv = np.asarray(source_uv, dtype=np.float64)
+    if uv.shape != (source.n_faces, 3, 2) or not np.isfinite(uv).all():
+        raise TransferError(f"source UVs must be finite, one (3, 2) block per face "
+                            f"({source.n_faces}), got {uv.shape}")
+    img = np.asarray(image, dtype=np.float64)
+    if img.ndim == 2:
+        img = img[..., None]
+    if img.ndim != 3 or min(img.shape[:2]) < 2:
+        raise TransferError(f"the source image must be (H, W[, C]) with H, W >= 2, got "
+                            f"{img.shape}")
+    res = maps.height.shape[0]
+    face, bary = texel_faces(maps.atlas, res, res)
+    filled = face >= 0
+    ys, xs = np.nonzero(filled)
+    out = np.zeros((res, res, img.shape[2]))
+    U = unit_directions(mm)
+    for s in range(0, len(ys), chunk):
+        y, x = ys[s:s + chunk], xs[s:s + chunk]
+        f, b = face[y, x], bary[y, x]
+        tri = mm.base.faces[f]
+        n = np.einsum("qk,qkc->qc", b, U[tri])
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+        p = np.einsum("qk,qkc->qc", b, mm.base.vertices[tri]) + n * maps.height[y, x, None]
+        near, sf, _ = nearest_points(p, source)
+        corners = source.vertices[source.faces[sf]]
+        w = _barycentrics(near, corners)
+        out[y, x] = sample(img, np.einsum("qk,qkc->qc", w, uv[sf]))
+    return dilate(out, filled, padding).astype(np.float32)
+
+
+def _barycentrics(p: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """(q, 3) barycentrics of points on triangles (q, 3, 3), clipped into the triangle."""
+    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+    v0, v1, v2 = b - a, c - a, p - a
+    d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
+    d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
+    den = d00 * d11 - d01 * d01
+    ok = np.abs(den) > 1e-300
+    den = np.where(ok, den, 1.0)
+    v = np.where(ok, (d11 * d20 - d01 * d21) / den, 1 / 3)
+    w = np.where(ok, (d00 * d21 - d01 * d20) / den, 1 / 3)
+    bary = np.clip(np.stack([1.0 - v - w, v, w], 1), 0.0, 1.0)
+    return bary / bary.sum(1, keepdims=True)
