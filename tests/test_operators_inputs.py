@@ -203,7 +203,7 @@ def test_bake_maps_carries_the_source_texture_onto_the_atlas(scene):
     # source shows at its nearest point (base vertices: the micro-surface is near them).
     from micromesh.core.bake import nearest_points
     from micromesh.core.maps import sample
-    from micromesh.core.maps.transfer import _barycentrics
+    from micromesh.core.barycentric import barycentrics
 
     me = obj.data
     uv_maps = np.empty(2 * len(me.loops), np.float32)
@@ -213,7 +213,7 @@ def test_bake_maps_carries_the_source_texture_onto_the_atlas(scene):
     pos = bl_mesh.mesh_arrays(me)[0][corner_vertex]          # maps object: identity transform
     ref, ref_uv = bl_mesh.mesh_to_arrays(src), bl_mesh.mesh_uvs(src)
     near, face, _ = nearest_points(pos, ref)
-    b = _barycentrics(near, ref.vertices[ref.faces[face]])
+    b = barycentrics(near, ref.vertices[ref.faces[face]])
     want = sample(pixels.astype(np.float64), np.einsum("qk,qkc->qc", b, ref_uv[face]))[:, :3]
     have = sample(got.astype(np.float64), uv_maps.reshape(-1, 2).astype(np.float64))[:, :3]
     close = np.abs(have - want).max(1) < 0.1

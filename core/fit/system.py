@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ..barycentric import barycentrics
 from ..closest import ClosestPointIndex
 from ..laplacian import uniform_laplacian
 from ..micromesh import MicroMesh
@@ -60,7 +61,7 @@ def _rows(X: np.ndarray, T: np.ndarray, samples, slopes: float):
     s, n = len(pts), len(X)
     cp, tri, _ = ClosestPointIndex(X, T).query(pts)
     corners = T[tri]                                          # (s, 3)
-    B = _barycentrics(cp, X[corners[:, 0]], X[corners[:, 1]], X[corners[:, 2]])
+    B = barycentrics(cp, X[corners])
     rows, cols, vals = [np.repeat(np.arange(s), 3)], [corners.reshape(-1)], [B.reshape(-1)]
     N, t, w = [normals], [(normals * pts).sum(1)], [weights]
     if slopes > 0:
@@ -75,17 +76,4 @@ def _rows(X: np.ndarray, T: np.ndarray, samples, slopes: float):
     C = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                       shape=(r, n))
     return C, np.concatenate(N), np.concatenate(t), np.concatenate(w)
-
-
-def _barycentrics(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """(s, 3) barycentrics of points p in triangles (a, b, c) (p on the triangle)."""
-    v0, v1, v2 = b - a, c - a, p - a
-    d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
-    d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
-    den = d00 * d11 - d01 * d01
-    ok = np.abs(den) > 1e-300
-    den = np.where(ok, den, 1.0)
-    bv = np.where(ok, (d11 * d20 - d01 * d21) / den, 1 / 3)
-    bw = np.where(ok, (d00 * d21 - d01 * d20) / den, 1 / 3)
-    return np.stack([1.0 - bv - bw, bv, bw], 1)
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..bake import nearest_points
+from ..barycentric import barycentrics
 from ..mesh import TriMesh
 from ..micromesh import MicroMesh
 from .atlas import dilate, texel_faces
@@ -57,21 +58,7 @@ def transfer_texture(mm: MicroMesh, maps: Maps, source: TriMesh, source_uv: np.n
         p = np.einsum("qk,qkc->qc", b, mm.base.vertices[tri]) + n * maps.height[y, x, None]
         near, sf, _ = nearest_points(p, source)
         corners = source.vertices[source.faces[sf]]
-        w = _barycentrics(near, corners)
+        w = barycentrics(near, corners)
         out[y, x] = sample(img, np.einsum("qk,qkc->qc", w, uv[sf]))
     return dilate(out, filled, padding).astype(np.float32)
 
-
-def _barycentrics(p: np.ndarray, corners: np.ndarray) -> np.ndarray:
-    """(q, 3) barycentrics of points on triangles (q, 3, 3), clipped into the triangle."""
-    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
-    v0, v1, v2 = b - a, c - a, p - a
-    d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
-    d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
-    den = d00 * d11 - d01 * d01
-    ok = np.abs(den) > 1e-300
-    den = np.where(ok, den, 1.0)
-    v = np.where(ok, (d11 * d20 - d01 * d21) / den, 1 / 3)
-    w = np.where(ok, (d00 * d21 - d01 * d20) / den, 1 / 3)
-    bary = np.clip(np.stack([1.0 - v - w, v, w], 1), 0.0, 1.0)
-    return bary / bary.sum(1, keepdims=True)
