@@ -403,7 +403,7 @@ def test_loose_vertices_and_repeated_faces_are_left_out():
     v, f = icosphere(2)
     far = np.vstack([v[:5], [[100.0, 0, 0], [100.0, 1, 0]], v[5:]])      # two loose vertices
     remap = np.where(f >= 5, f + 2, f)
-    messy = TriMesh(far, np.vstack([remap, remap[:3][:, ::-1], np.roll(remap[7:8], 1, 1)]))
+    messy = TriMesh(far, np.vstack([remap, np.roll(remap[:3], 1, 1), remap[7:8]]))
     got, warnings = oriented_reference(messy)
     clean, none = oriented_reference(TriMesh(v, f))
     assert none == []
@@ -411,3 +411,20 @@ def test_loose_vertices_and_repeated_faces_are_left_out():
                         "4 repeated faces (the same three vertices again) were left out"]
     np.testing.assert_array_equal(got.vertices, clean.vertices)
     np.testing.assert_array_equal(got.faces, clean.faces)
+
+
+def test_a_flap_of_two_faces_wound_both_ways_is_left_out():
+    """A triangle hanging on one edge of the surface, once each way round (a sheet of no
+    thickness, as in the beast scan): both copies go, and the surface is manifold again."""
+    from core.construct.frame import oriented_reference
+
+    v, f = icosphere(2)
+    a, b = f[0, 0], f[0, 1]
+    tip = len(v)
+    flap = np.array([[a, b, tip], [b, a, tip]])
+    messy = TriMesh(np.vstack([v, [[0.0, 0.0, 3.0]]]), np.vstack([f, flap]))
+    assert len(messy.nonmanifold_edges) == 1
+    got, warnings = oriented_reference(messy)
+    assert "2 faces with a copy wound the other way (sheets of no thickness) were left out" \
+        in warnings and "1 vertices in no face (loose vertices or edges) were left out" in warnings
+    assert got.n_faces == len(f) and got.is_closed_manifold and len(got.nonmanifold_edges) == 0

@@ -61,12 +61,26 @@ def oriented_reference(reference: TriMesh) -> tuple[TriMesh, list[str]]:
 
 def _without_loose_and_duplicates(mesh: TriMesh) -> tuple[TriMesh, list[str]]:
     """``mesh`` without vertices no face uses (they would move the unit frame: a stray point
-    far away shrinks the object in every view) and without repeated faces (the same three
-    vertices again, in any order), and what was left out, in words."""
+    far away shrinks the object in every view), without repeated faces (the same three
+    vertices again, wound the same way: one stays) and without faces that have a copy wound
+    the other way (a sheet of no thickness, a flap on the surface: all its copies go), and
+    what was left out, in words."""
     faces = mesh.faces
-    _, first = np.unique(np.sort(faces, axis=1), axis=0, return_index=True)
-    repeated = len(faces) - len(first)
-    faces = faces[np.sort(first)]
+    cycled = _rotated_to_smallest(faces)
+    key = np.sort(faces, axis=1)
+    _, group = np.unique(key, axis=0, return_inverse=True)
+    group = group.reshape(-1)
+    forward = cycled[:, 1] < cycled[:, 2]
+    n_groups = group.max(initial=-1) + 1
+    both = (np.bincount(group, weights=forward, minlength=n_groups) > 0) \
+        & (np.bincount(group, weights=~forward, minlength=n_groups) > 0)
+    sheet = both[group]
+    _, first = np.unique(np.column_stack([group, forward]), axis=0, return_index=True)
+    keep = np.zeros(len(faces), bool)
+    keep[first] = True
+    repeated = int((~keep & ~sheet).sum())
+    keep &= ~sheet
+    faces = faces[keep]
     used = np.zeros(mesh.n_vertices, bool)
     used[faces] = True
     loose = int((~used).sum())
@@ -76,10 +90,20 @@ def _without_loose_and_duplicates(mesh: TriMesh) -> tuple[TriMesh, list[str]]:
     if repeated:
         warnings.append(f"{repeated} repeated faces (the same three vertices again) were left "
                         "out")
-    if not (loose or repeated):
+    if sheet.any():
+        warnings.append(f"{int(sheet.sum())} faces with a copy wound the other way (sheets of "
+                        "no thickness) were left out")
+    if not (loose or repeated or sheet.any()):
         return mesh, warnings
     index = np.cumsum(used) - 1
     return TriMesh(mesh.vertices[used], index[faces]), warnings
+
+
+def _rotated_to_smallest(faces: np.ndarray) -> np.ndarray:
+    """Each face's vertices cycled so the smallest comes first (the winding kept)."""
+    shift = np.argmin(faces, axis=1)
+    idx = (shift[:, None] + np.arange(3)[None, :]) % 3
+    return np.take_along_axis(faces, idx, axis=1)
 
 
 def check_inputs(reference: TriMesh, base: TriMesh) -> None:
