@@ -80,10 +80,12 @@ def _without_loose_and_duplicates(mesh: TriMesh) -> tuple[TriMesh, list[str]]:
     keep[first] = True
     repeated = int((~keep & ~sheet).sum())
     keep &= ~sheet
-    faces = faces[keep]
     used = np.zeros(mesh.n_vertices, bool)
     used[faces] = True
-    loose = int((~used).sum())
+    loose = int((~used).sum())               # in no face of the input (a sheet's tip is not)
+    faces = faces[keep]
+    used[:] = False
+    used[faces] = True
     warnings = []
     if loose:
         warnings.append(f"{loose} vertices in no face (loose vertices or edges) were left out")
@@ -93,7 +95,7 @@ def _without_loose_and_duplicates(mesh: TriMesh) -> tuple[TriMesh, list[str]]:
     if sheet.any():
         warnings.append(f"{int(sheet.sum())} faces with a copy wound the other way (sheets of "
                         "no thickness) were left out")
-    if not (loose or repeated or sheet.any()):
+    if used.all() and keep.all():
         return mesh, warnings
     index = np.cumsum(used) - 1
     return TriMesh(mesh.vertices[used], index[faces]), warnings
