@@ -20,48 +20,66 @@ from ..micromesh import MicroMesh
 
 
 def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, slopes: float,
-                     base_stiffness: float = 0.0, offsets: np.ndarray | None = None
-                     ) -> tuple[sp.csr_matrix, np.ndarray]:
+                     base_stiffness: float = 0.0, offsets: np.ndarray | None = None,
+                     chunk: int = 1 << 17) -> tuple[sp.csr_matrix, np.ndarray]:
     """(M, b) of one fit round: the samples matched to their closest points on the
     micro-surface of displacements ``d`` (and base vertices moved by ``offsets`` (nb, 3)),
-    then the weighted least-squares system.
+    then the weighted least-squares system, summed over ``chunk`` samples at a time (the rows
+    of all samples at once took 6 KB per sample at the peak).
 
     Unknowns: the displacements (n,); with ``base_stiffness`` > 0 also increments of the base
     offsets (3 nb, x then y then z), held by ``base_stiffness`` · (weight per base vertex) ·
     |offsets|². M is (n, n) or (n + 3 nb, n + 3 nb).
     """
-    W = mm.topology.interp
+    W = mm.topology.interp.tocsr()
     n, nb = mm.n_vertices, mm.base.n_vertices
     offsets = np.zeros((nb, 3)) if offsets is None else offsets
     P, D = W @ (mm.base.vertices + offsets), mm.micro_vertex_directions()
     T = mm.topology.triangles                  # the non-degenerate micro-triangles
-    C, N, t, w = _rows(P + D * d[:, None], T, samples, slopes)
+    pts, normals, weights = samples
+    X = P + D * d[:, None]
+    cp, tri, _ = ClosestPointIndex(X, T).query(pts)
+    corners = T[tri]                                          # (s, 3)
+    B = barycentrics(cp, X[corners])
+    joint = base_stiffness > 0
+    size = n + 3 * nb if joint else n
+    M, b = sp.csr_matrix((size, size)), np.zeros(size)
+    for lo in range(0, len(pts), chunk):
+        part = slice(lo, lo + chunk)
+        C, N, t, w = _rows(corners[part], B[part], pts[part], normals[part], weights[part],
+                           n, slopes)
+        A, rhs = _columns(C, N, t, P, D, W if joint else None)
+        AtW = A.T.multiply(w[None, :]).tocsr()
+        M = M + AtW @ A
+        b += AtW @ rhs
+    L = uniform_laplacian(n, T)
+    reg = [smoothness * (L.T @ L) + 1e-9 * sp.eye(n)]
+    prior = [1e-9 * d]
+    if joint:
+        k = base_stiffness * weights.sum() * (1 + (3 * slopes if slopes > 0 else 0)) / nb
+        reg.append(k * sp.eye(3 * nb))
+        prior.append(-k * offsets.T.reshape(-1))        # holds the offsets, not the increments
+    return (M + sp.block_diag(reg)).tocsr(), b + np.concatenate(prior)
+
+
+def _columns(C, N, t, P, D, W):
+    """(A, rhs) of rows ``C`` along normals ``N`` with targets ``t``: the displacements'
+    columns (c_k n·D_k) and, with ``W``, the base vertices' (n_a (C W)), and t − n·(C P)."""
     coo = C.tocoo()
     A = sp.csr_matrix((coo.data * (N[coo.row] * D[coo.col]).sum(1), (coo.row, coo.col)),
                       shape=C.shape)
     rhs = t - sum(N[:, a] * (C @ P[:, a]) for a in range(3))
-    L = uniform_laplacian(n, T)
-    reg = [smoothness * (L.T @ L) + 1e-9 * sp.eye(n)]
-    prior = [1e-9 * d]
-    if base_stiffness > 0:
+    if W is not None:
         CW = (C @ W).tocsr()
         A = sp.hstack([A] + [CW.multiply(N[:, a:a + 1]) for a in range(3)]).tocsr()
-        k = base_stiffness * w.sum() / nb
-        reg.append(k * sp.eye(3 * nb))
-        prior.append(-k * offsets.T.reshape(-1))        # holds the offsets, not the increments
-    AtW = A.T.multiply(w[None, :]).tocsr()
-    M = AtW @ A + sp.block_diag(reg)
-    return M.tocsr(), AtW @ rhs + np.concatenate(prior)
+    return A, rhs
 
 
-def _rows(X: np.ndarray, T: np.ndarray, samples, slopes: float):
+def _rows(corners, B, pts, normals, weights, n: int, slopes: float):
     """(C (r, n) coefficients, N (r, 3) normals, t (r,) targets, w (r,) weights) of the point
-    rows and, with ``slopes`` > 0, the slope rows (weight ``slopes`` times the sample's)."""
-    pts, normals, weights = samples
-    s, n = len(pts), len(X)
-    cp, tri, _ = ClosestPointIndex(X, T).query(pts)
-    corners = T[tri]                                          # (s, 3)
-    B = barycentrics(cp, X[corners])
+    rows of samples matched to micro-triangles ``corners`` at barycentrics ``B`` and, with
+    ``slopes`` > 0, the slope rows (weight ``slopes`` times the sample's)."""
+    s = len(pts)
     rows, cols, vals = [np.repeat(np.arange(s), 3)], [corners.reshape(-1)], [B.reshape(-1)]
     N, t, w = [normals], [(normals * pts).sum(1)], [weights]
     if slopes > 0:
