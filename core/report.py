@@ -100,8 +100,9 @@ def report_data(metrics: dict, history: dict, levels: np.ndarray, settings_chang
     m = {k: metrics.get(k) for k, _, _ in ROWS if k in metrics}
     if metrics.get("bytes"):
         m["compression"] = input_bytes / metrics["bytes"]
-    if isinstance(metrics.get("residual_lod"), dict):     # finalise.fitted's decision
-        m["residual_lod"] = dict(metrics["residual_lod"])
+    for key in ("residual_lod", "base_fit"):               # finalise.fitted's decisions
+        if isinstance(metrics.get(key), dict):
+            m[key] = dict(metrics[key])
     return {"metrics": m, "levels_hist": np.bincount(levels, minlength=6).tolist(),
             "history": {k: list(history.get(k, [])) for k in ("iteration", "loss", "psnr")},
             "events": [e for e in history.get("events", []) if "level" in e],
@@ -187,6 +188,9 @@ def _table(ax, data: dict) -> None:
     if r:
         rows.append(["levels moved after the fit", f"{'kept' if r['kept'] else 'refused'}: "
                      f"{r['faces_up']} up, {r['faces_down']} down"])
+    r = data["metrics"].get("base_fit")
+    if r:
+        rows.append(["base moved by the fit", "kept" if r["kept"] else "refused"])
     rows += [[f"time: {k}", f"{v:.1f} s"] for k, v in sorted(data["timings"].items())
              if v >= 0.5]
     rows += [["device", data.get("device", "")], ["threads", str(data.get("threads", ""))]]

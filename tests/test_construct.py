@@ -428,3 +428,31 @@ def test_a_flap_of_two_faces_wound_both_ways_is_left_out():
     assert warnings == ["2 faces with a copy wound the other way (sheets of no thickness) were "
                         "left out"]
     assert got.n_faces == len(f) and got.is_closed_manifold and len(got.nonmanifold_edges) == 0
+
+
+@pytest.mark.parametrize("growth", [1.1, 0.0])
+def test_the_base_moves_only_where_it_helps(growth, monkeypatch):
+    """finalise.fitted's last round moves the base vertices; it is kept where the shading
+    error falls and the shell widens by a tenth at most (here: a bumpy sphere, kept), else
+    the displacements-only fit stays (forced by allowing no shell at all)."""
+    from types import SimpleNamespace
+
+    import core.construct.finalise as fin
+    from core.metrics import PhaseTimer
+    from core.micromesh import MicroMesh
+
+    v, f = icosphere(2)
+    base = TriMesh(v, f)
+    rv, rf = icosphere(5)
+    ref = TriMesh(rv * (1 + 0.03 * np.sin(9 * rv[:, :1]) * np.sin(7 * rv[:, 1:2])), rf)
+    mm = MicroMesh.flat(base, np.full(base.n_faces, 2))
+    run = SimpleNamespace(s=preset("default", residual_lod=0.0), base=base, cost=None, budget=0,
+                          fixed=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
+                          notes={}, check_stop=lambda: None)
+    monkeypatch.setattr(fin, "_SHELL_GROWTH", growth)
+    out = fin.fitted(run, mm)
+    note = run.notes["base_fit"]
+    assert note["kept"] is (growth > 0)
+    assert note["shading_error_after"] < note["shading_error_before"]
+    moved = np.abs(out.base.vertices - base.vertices).max()
+    assert bool(moved > 0) is (growth > 0)

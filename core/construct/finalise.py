@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from ..bounds import baked, tight_bounds, unit_bounds
+from ..bounds import baked, micromesh_shell_volume, tight_bounds, unit_bounds
 from ..mesh import TriMesh
 from ..micromesh import MicroMesh
 from ..microtopology import balance_levels
@@ -70,9 +70,29 @@ def fitted(run: RunState, mm: MicroMesh) -> MicroMesh:
         mm, samples = _exchanged(run, mm, samples)
     if run.s.fit_base_stiffness > 0 and run.fixed is None:
         run.check_stop()
-        with run.timer.phase("fit"):
-            mm = _fit(run, mm, samples, run.s.fit_base_stiffness, rounds=1)
+        mm = _base_moved(run, mm, samples)
     return mm
+
+
+# The base may move where the shell grows by at most this factor.
+_SHELL_GROWTH = 1.1
+
+
+def _base_moved(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
+    """One fit round with the base vertices as unknowns, kept where it lowers the shading
+    error without widening the shell by more than a tenth (on parts thinner than the samples'
+    spacing a base vertex can be pulled across to the far side);
+    ``run.notes["base_fit"]`` says what happened."""
+    with run.timer.phase("fit"):
+        moved = _fit(run, mm, samples, run.s.fit_base_stiffness, rounds=1)
+    with run.timer.phase("fit"):
+        before, after = (surface_errors(m, samples)[1].sum() for m in (mm, moved))
+        shells = [micromesh_shell_volume(m, tight_bounds(m)) for m in (mm, moved)]
+    keep = bool(after < before and shells[1] <= _SHELL_GROWTH * shells[0])
+    run.notes["base_fit"] = {"kept": keep, "shading_error_before": float(before),
+                             "shading_error_after": float(after),
+                             "shell_before": float(shells[0]), "shell_after": float(shells[1])}
+    return moved if keep else mm
 
 
 def _exchanged(run: RunState, mm: MicroMesh, samples) -> tuple[MicroMesh, tuple]:
