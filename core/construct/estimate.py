@@ -3,10 +3,10 @@ settings before any heavy work, and the refusal of a run that will not fit in me
 
 The model is linear in the work each phase does (faces decimated, micro-triangles rendered
 per iteration and view pixel, micro-triangles fitted, faces rendered for the metrics); its
-coefficients were measured on the developers' 2-core x86-64 machine with
-``bench/scale_bench.py`` (20k to 2M faces, the `default` preset), which prints the estimate
-beside each measurement. Times are for that machine and scale with the threads given; memory
-is the process's peak resident size.
+coefficients were fitted to the `default` constructions of ``bench/construct_bench.py`` on
+the developers' 2-core x86-64 machine (60k-270k faces; every run's metrics keep the estimate
+beside the measured peak, and ``bench/scale_bench.py`` prints both for larger inputs). Times
+are for that machine; memory is the process's peak resident size.
 """
 from __future__ import annotations
 
@@ -19,21 +19,20 @@ _MB = 2 ** 20
 
 # Seconds (2 cores): per input face for the base builder and the metrics; per micro-triangle
 # and per view pixel of one iteration; per micro-triangle for the fit; fixed start-up.
-_T_FIXED = 8.0
+_T_FIXED = 5.0
 _T_BASE_PER_FACE = 1.0e-4
-_T_ITER_FIXED = 0.04
-_T_ITER_PER_MICRO = 4.0e-7
-_T_ITER_PER_PIXEL = 1.2e-7
-_T_FIT_PER_MICRO = 6.0e-5
-_T_METRICS_PER_FACE = 2.0e-5
-# Bytes: the interpreter and libraries, per input face (the reference, its topology, the
-# base builder's quadrics and heap, the metrics' samples), per micro-triangle (micro-mesh,
-# optimiser state, fit samples and normal equations), per cached image pixel.
-_M_FIXED = 700 * _MB
-_M_PER_FACE = 2000
-_M_PER_MICRO = 1500
+_T_ITER_FIXED = 0.02
+_T_ITER_PER_MICRO = 1.56e-6
+_T_ITER_PER_PIXEL = 9.0e-8
+_T_FIT_PER_MICRO = 1.7e-4
+_T_METRICS_PER_FACE = 3.5e-5
+# Bytes: the interpreter and libraries; per micro-triangle (the micro-mesh, the optimiser's
+# state, the fit's samples, matches and normal equations: the peak is the fit's); per cached
+# image pixel; per input face (the reference and its topology: small beside the rest).
+_M_FIXED = 300 * _MB
+_M_PER_FACE = 0
+_M_PER_MICRO = 6500
 _M_PER_PIXEL = 40
-
 
 @dataclass
 class Estimate:
