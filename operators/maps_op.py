@@ -5,8 +5,6 @@ the micro-detail from a texture. Images are packed into the ``.blend`` (``batch.
 also writes them as files)."""
 from __future__ import annotations
 
-import os
-import tempfile
 from functools import partial
 
 import bpy
@@ -16,38 +14,11 @@ from bpy.props import IntProperty
 from ..core.maps import Maps, bake_maps, transfer_texture, unit_directions
 from ..core.micromesh import MicroMesh
 from . import bl_mesh, job, source_texture, writeback
+from .images import image
 from .files_op import result_object
 
 GROUP = "MicroMesh Height Map"
 MODIFIER = "MicroMesh Height"
-
-
-def image(name: str, pixels: np.ndarray, path: str | None = None) -> bpy.types.Image:
-    """A float OpenEXR image (replacing one of that name) from (H, W) or (H, W, 3) values, row
-    0 at the bottom, non-colour data: written to ``path`` when given, else packed into the
-    ``.blend`` (written to a temporary file and read back: Blender packs files, not buffers)."""
-    old = bpy.data.images.get(name)
-    if old is not None:
-        bpy.data.images.remove(old)
-    h, w = pixels.shape[:2]
-    img = bpy.data.images.new(name, w, h, alpha=False, float_buffer=True)
-    img.colorspace_settings.name = "Non-Color"   # first: a change regenerates the pixels
-    rgba = np.ones((h, w, 4), np.float32)
-    rgba[..., :3] = pixels[..., None] if pixels.ndim == 2 else pixels
-    img.pixels.foreach_set(rgba.reshape(-1))
-    with tempfile.TemporaryDirectory() as tmp:
-        target = path or os.path.join(tmp, f"{name}.exr")
-        img.filepath_raw, img.file_format = target, "OPEN_EXR"
-        img.use_half_precision = False
-        img.save()
-        bpy.data.images.remove(img)
-        img = bpy.data.images.load(target)
-        img.name = name
-        img.colorspace_settings.name = "Non-Color"
-        if path is None:
-            img.pack()
-            img.filepath_raw = f"//{name}.exr"
-    return img
 
 
 def maps_object(context, source, mm: MicroMesh, maps: Maps, name: str) -> bpy.types.Object:

@@ -11,7 +11,7 @@ import numpy as np
 from ..core.io.maps_files import base_gltf, png
 from ..core.io.micromesh_export import micromesh_files
 from ..core.maps import rebuild_error
-from . import maps_op, source_texture, writeback
+from . import images, maps_op, source_texture, writeback
 from .sources import export_y_up
 
 
@@ -48,7 +48,7 @@ def write_maps(context, outcome, source, resolution: int, out, progress) -> dict
     texture = source_texture.read(source)
     maps, color = maps_op.bake_with_texture(mm, resolution, texture, progress, lambda: False)
     obj = maps_op.maps_object(context, source, mm, maps, f"{source.name}_maps")
-    img = maps_op.image(f"{name}_height_file", maps.height, path=str(out.temp("_height.exr")))
+    img = images.image(f"{name}_height_file", maps.height, path=str(out.temp("_height.exr")))
     bpy.data.images.remove(img)
     out.temp("_normal.png").write_bytes(png(maps.normal))
     color_uri = None

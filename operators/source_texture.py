@@ -3,8 +3,6 @@ with the UVs of its triangles, and the carried texture (``core.maps.transfer_tex
 an image in the maps object's material, so the baked asset keeps its look."""
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass
 
 import bpy
@@ -12,6 +10,7 @@ import numpy as np
 
 from ..core.mesh import TriMesh
 from . import bl_mesh
+from .images import image
 
 
 @dataclass(eq=False)
@@ -58,27 +57,10 @@ def read(obj: bpy.types.Object) -> SourceTexture | None:
 
 
 def make_image(name: str, pixels: np.ndarray, like: SourceTexture) -> bpy.types.Image:
-    """An image (replacing one of that name) of (H, W, 4) pixels in the source's colour space,
-    packed into the ``.blend`` (PNG, or OpenEXR for a float source)."""
-    old = bpy.data.images.get(name)
-    if old is not None:
-        bpy.data.images.remove(old)
-    h, w = pixels.shape[:2]
-    img = bpy.data.images.new(name, w, h, alpha=True, float_buffer=like.is_float)
-    img.colorspace_settings.name = like.colorspace
-    img.pixels.foreach_set(np.clip(pixels, 0.0, None).astype(np.float32).reshape(-1))
-    ext, fmt = (".exr", "OPEN_EXR") if like.is_float else (".png", "PNG")
-    with tempfile.TemporaryDirectory() as tmp:
-        target = os.path.join(tmp, name + ext)
-        img.filepath_raw, img.file_format = target, fmt
-        img.save()
-        bpy.data.images.remove(img)
-        img = bpy.data.images.load(target)
-        img.name = name
-        img.colorspace_settings.name = like.colorspace
-        img.pack()
-        img.filepath_raw = f"//{name}{ext}"
-    return img
+    """An image of (H, W, 4) pixels in the source's colour space, packed into the ``.blend``
+    (PNG, or OpenEXR for a float source)."""
+    return image(name, np.clip(pixels, 0.0, None), colorspace=like.colorspace,
+                 float_buffer=like.is_float)
 
 
 def link_base_color(mat: bpy.types.Material, image: bpy.types.Image) -> None:
