@@ -22,6 +22,19 @@ def mesh_path(name: str) -> Path:
     return p
 
 
+@pytest.fixture(scope="module")
+def registered_addon():
+    """The add-on registered in the bpy wheel for a module's tests (``pytestmark``), then
+    unregistered; skips where bpy is absent."""
+    pytest.importorskip("bpy")
+    import micromesh_path
+
+    pkg = micromesh_path.ensure_package()
+    pkg.register()
+    yield pkg
+    pkg.unregister()
+
+
 @pytest.fixture(scope="session")
 def package_index(tmp_path_factory):
     """A scratch folder where pip can reach the package index (it fetches a small wheel);

@@ -9,16 +9,12 @@ import pytest
 bpy = pytest.importorskip("bpy")
 import micromesh_path  # noqa: E402
 
-pkg = micromesh_path.ensure_package()
+micromesh_path.ensure_package()
 from micromesh.core.cameras import supplement_up  # noqa: E402
 from micromesh.operators import bl_mesh, cameras_io, construct_op, job, writeback  # noqa: E402
 
 
-@pytest.fixture(scope="module", autouse=True)
-def registered():
-    pkg.register()
-    yield
-    pkg.unregister()
+pytestmark = pytest.mark.usefixtures("registered_addon")
 
 
 @pytest.fixture
