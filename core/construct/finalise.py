@@ -85,7 +85,6 @@ def _base_moved(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
     ``run.notes["base_fit"]`` says what happened."""
     with run.timer.phase("fit"):
         moved = _fit(run, mm, samples, run.s.fit_base_stiffness, rounds=1)
-    with run.timer.phase("fit"):
         before, after = (surface_errors(m, samples)[1].sum() for m in (mm, moved))
         shells = [micromesh_shell_volume(m, tight_bounds(m)) for m in (mm, moved)]
     keep = bool(after < before and shells[1] <= _SHELL_GROWTH * shells[0])

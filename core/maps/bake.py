@@ -38,6 +38,16 @@ def unit_directions(mm: MicroMesh) -> np.ndarray:
     return np.where(n > 0, d / np.maximum(n, 1e-300), mm.base.vertex_normals)
 
 
+def base_point(mm: MicroMesh, U: np.ndarray, faces: np.ndarray, bary: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """(points (q, 3), unit directions (q, 3)) of the base surface at base ``faces`` (q,) and
+    barycentrics ``bary`` (q, 3): where a map's texel sits and the way its height points
+    (``U``: :func:`unit_directions`)."""
+    tri = mm.base.faces[faces]
+    return (np.einsum("qk,qkc->qc", bary, mm.base.vertices[tri]),
+            _unit(np.einsum("qk,qkc->qc", bary, U[tri])))
+
+
 class MapsCancelled(RuntimeError):
     """``should_stop()`` turned true: no maps."""
 
@@ -73,9 +83,7 @@ def bake_maps(mm: MicroMesh, resolution: int = 2048, padding: int = 4,
         progress({"phase": "maps", "iteration": i, "total": len(steps) + 1})
         y, x = ys[s:s + chunk], xs[s:s + chunk]
         f, b = face[y, x], bary[y, x]
-        tri = mm.base.faces[f]
-        P = np.einsum("qk,qkc->qc", b, mm.base.vertices[tri])
-        n = _unit(np.einsum("qk,qkc->qc", b, U[tri]))
+        P, n = base_point(mm, U, f, b)
         hit = bake_displacements(P, n, surface, max_distance=reach)   # along ±n, nearest
         height[y, x] = hit.displacement
         m = facet[hit.face]
@@ -115,9 +123,7 @@ def rebuilt_positions(mm: MicroMesh, maps: Maps, nearest: bool = False) -> np.nd
     used = f >= 0
     out = mm.micro_vertex_positions().copy()
     f, b = f[used], b[used]
-    tri = mm.base.faces[f]
-    P = np.einsum("qk,qkc->qc", b, mm.base.vertices[tri])
-    n = _unit(np.einsum("qk,qkc->qc", b, unit_directions(mm)[tri]))
+    P, n = base_point(mm, unit_directions(mm), f, b)
     uv = np.einsum("qk,qkc->qc", b, maps.atlas.corner_uv[f])
     out[used] = P + n * sample(maps.height.astype(np.float64), uv, nearest)[:, None]
     return out

@@ -15,7 +15,7 @@ from ..barycentric import barycentrics
 from ..mesh import TriMesh
 from ..micromesh import MicroMesh
 from .atlas import dilate, texel_faces
-from .bake import Maps, sample, unit_directions
+from .bake import Maps, base_point, sample, unit_directions
 
 
 class TransferError(ValueError):
@@ -51,11 +51,8 @@ def transfer_texture(mm: MicroMesh, maps: Maps, source: TriMesh, source_uv: np.n
     U = unit_directions(mm)
     for s in range(0, len(ys), chunk):
         y, x = ys[s:s + chunk], xs[s:s + chunk]
-        f, b = face[y, x], bary[y, x]
-        tri = mm.base.faces[f]
-        n = np.einsum("qk,qkc->qc", b, U[tri])
-        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-        p = np.einsum("qk,qkc->qc", b, mm.base.vertices[tri]) + n * maps.height[y, x, None]
+        P, n = base_point(mm, U, face[y, x], bary[y, x])
+        p = P + n * maps.height[y, x, None]
         near, sf, _ = nearest_points(p, source)
         corners = source.vertices[source.faces[sf]]
         w = barycentrics(near, corners)
