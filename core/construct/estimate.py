@@ -3,10 +3,10 @@ settings before any heavy work, and the refusal of a run that will not fit in me
 
 The model is linear in the work each phase does (faces decimated, micro-triangles rendered
 per iteration and view pixel, micro-triangles fitted, faces rendered for the metrics); its
-coefficients were fitted to the `default` constructions of ``bench/construct_bench.py`` on
-the developers' 2-core x86-64 machine (60k-270k faces; every run's metrics keep the estimate
-beside the measured peak, and ``bench/scale_bench.py`` prints both for larger inputs). Times
-are for that machine; memory is the process's peak resident size.
+coefficients were fitted to five `default` constructions of ``bench/construct_bench.py``
+(60k-100k faces) on the developers' 2-core x86-64 machine; every run's metrics keep the
+estimate beside the measured peak, and ``bench/scale_bench.py`` prints both for larger inputs.
+Times are for that machine; memory is the process's peak resident size.
 """
 from __future__ import annotations
 
