@@ -80,6 +80,8 @@ class ConstructSettings:
                                      # budget, then fit again (0: off; ours)
     fold_bounds: bool = True         # fold the tight bounds into base and directions: the
                                      # result is what a .bary file holds (core.bounds.baked)
+    lp_bounds: bool = True           # fold the least-volume bounds first and fit again
+                                     # (core.bounds.lp_bounds; ours): a thinner shell
 
     # losses
     w_render: float = 1.0
@@ -146,7 +148,7 @@ PRESETS: dict[str, dict] = {
     # Under five minutes on a 2-core CPU: what batch.py and the panel run unless told otherwise
     # (the time limit counts from the start of the base building; the fit, the metrics and the
     # file writing come after it).
-    "default": dict(iterations=400, subdivide_at=(25, 75, 150, 250), max_level=4,
+    "default": dict(iterations=100, subdivide_at=(6, 18, 37, 62), max_level=4,
                     views_per_iter=12, train_resolution=256, lod_resolution=192,
                     lr_base=3e-4, lr_disp=1e-4, w_iso=0.1, w_range=0.03, lod="uniform",
                     time_limit_s=270.0),

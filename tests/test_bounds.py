@@ -7,8 +7,8 @@ from hypothesis import given, settings, strategies as st
 
 from shapes import icosphere
 from core.bounds import (
-    BoundsError, DirectionBounds, micromesh_shell_volume, normalized_values, prismoid_volumes,
-    shell_volume, tight_bounds,
+    BoundsError, DirectionBounds, lp_bounds, micromesh_shell_volume, normalized_values,
+    prismoid_volumes, shell_volume, tight_bounds,
 )
 from core.micromesh import MicroMesh
 
@@ -86,6 +86,33 @@ def test_tight_bounds_contain_values(seed):
     rec = top.interp @ (P + D * bd.bias[:, None]) + (top.interp @ (D * bd.scale[:, None])) * \
         t[:, None]
     assert np.allclose(rec, mm.micro_vertex_positions(), atol=1e-12)
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2 ** 31 - 1))
+def test_lp_bounds_contain_every_value_in_a_thinner_shell(seed):
+    """Under parallel directions the least-volume bounds still hold every micro-vertex
+    (values in [0, 1]), their shell is no thicker than the tight bounds' and, with a bump in
+    a spike near one corner of a face, far thinner (tight bounds give its height to all three
+    vertices of the faces around it, the programme mostly to the corner nearest it)."""
+    rng = np.random.default_rng(seed)
+    m = icosphere(1)
+    mm = MicroMesh.flat(m, rng.integers(0, 3, m.n_faces), np.tile(rng.standard_normal(3),
+                                                                     (m.n_vertices, 1)))
+    mm = mm.with_displacements(rng.standard_normal(mm.n_vertices) * 0.1)
+    lp, tight = lp_bounds(mm), tight_bounds(mm)
+    t = normalized_values(mm, lp, clip=False)
+    assert t.min() >= -1e-6 and t.max() <= 1 + 1e-6
+    assert micromesh_shell_volume(mm, lp) <= micromesh_shell_volume(mm, tight) * (1 + 1e-9)
+
+    flat = MicroMesh.flat(m, 3, np.tile([0.0, 0.0, 1.0], (m.n_vertices, 1)))
+    inner = flat.topology.face_vertices(0)
+    weights = flat.topology.interp[inner].toarray()
+    spike = inner[np.argmax(np.where((weights > 0).sum(1) == 3, weights.max(1), 0))]
+    flat = flat.with_displacements(0.1 * (np.arange(flat.n_vertices) == spike))  # near a corner
+    lp, tight = lp_bounds(flat), tight_bounds(flat)
+    assert normalized_values(flat, lp, clip=False).max() <= 1 + 1e-6
+    assert micromesh_shell_volume(flat, lp) < 0.5 * micromesh_shell_volume(flat, tight)
 
 
 def test_vertex_normals_values_mostly_inside_and_clipped():

@@ -1,8 +1,8 @@
 """The end of a construction: final levels, balance, the least-squares fit of the
 displacements (``core.fit``), levels moved to where the fit still misses the reference and
 fitted again (``choose_levels.residual_exchange``; kept only where that lowers the shading
-error), tight bounds folded into the base and the
-directions (what a file holds: ``core.bounds.baked``), metrics, and the result in the
+error), bounds of least shell volume folded into the base and the directions (what a file
+holds: ``core.bounds.baked``) and the displacements fitted again under them, metrics, and the result in the
 caller's frame."""
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from ..bounds import baked, micromesh_shell_volume, tight_bounds, unit_bounds
+from ..bounds import baked, lp_bounds, micromesh_shell_volume, tight_bounds, unit_bounds
 from ..mesh import TriMesh
 from ..micromesh import MicroMesh
 from ..microtopology import balance_levels
@@ -30,13 +30,16 @@ def finalise(run: RunState, params: Parameters, reference: TriMesh, base: TriMes
     mm = final_levels(run, mm)
     with run.timer.phase("finalize"):
         mm = mm.with_levels(balance_levels(run.base, mm.levels))
+    samples = None
     if run.s.final_fit:
         run.check_stop()
-        mm = fitted(run, mm)
+        mm, samples = fitted(run, mm)
+    bounds = None
+    if run.s.fold_bounds and run.fixed is None:  # what a file holds (not: a frozen base)
+        run.check_stop()
+        mm, bounds = folded(run, mm, samples), unit_bounds(mm.base.n_vertices)
     with run.timer.phase("finalize"):
-        bounds = tight_bounds(mm)
-        if run.s.fold_bounds and run.fixed is None:  # what a file holds (not: a frozen base)
-            mm, bounds = baked(mm, bounds), unit_bounds(mm.base.n_vertices)
+        bounds = tight_bounds(mm) if bounds is None else bounds
     run.check_stop()
     construct_time = time.perf_counter() - t_start
     metrics: dict = {}
@@ -53,14 +56,30 @@ def finalise(run: RunState, params: Parameters, reference: TriMesh, base: TriMes
                            run.s, run.norm, mm)
 
 
-def fitted(run: RunState, mm: MicroMesh) -> MicroMesh:
+def folded(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
+    """``mm`` with bounds folded into its base and directions (``core.bounds.baked``). After a
+    fit (``samples``) and with ``lp_bounds``, first the least-volume bounds
+    (``core.bounds.lp_bounds``), the displacements fitted again under them (baking such
+    bounds moves micro-vertices: neighbours' bounds differ more), then the tight bounds of
+    the result, which are nearly unit and bake almost exactly."""
+    if run.s.lp_bounds and samples is not None:
+        with run.timer.phase("bounds"):
+            mm = baked(mm, lp_bounds(mm))
+        with run.timer.phase("fit"):
+            mm = _fit(run, mm, samples, rounds=1)
+    with run.timer.phase("finalize"):
+        return baked(mm, tight_bounds(mm))
+
+
+def fitted(run: RunState, mm: MicroMesh) -> tuple[MicroMesh, tuple]:
     """``mm`` with its displacements fitted to the reference (``core.fit``); then, with a
     budget, levels moved to where the fit still misses it and fitted again. The moved levels
     are kept only where they lower the shading error (squared normal differences) of the same
     reference samples: where the residual model misjudges a mesh (smooth ones, whose residual
     falls faster than it assumes), the first fit stays. ``run.notes["residual_lod"]`` says
     what happened. Last, the base vertices are fitted with the displacements
-    (``fit_base_stiffness``; not where the base is frozen)."""
+    (``fit_base_stiffness``; not where the base is frozen). Returns the micro-mesh and the
+    reference samples it was fitted to."""
     ref = run.scene.ref
     with run.timer.phase("fit"):
         samples = fit_samples(mm, ref)
@@ -71,7 +90,7 @@ def fitted(run: RunState, mm: MicroMesh) -> MicroMesh:
     if run.s.fit_base_stiffness > 0 and run.fixed is None:
         run.check_stop()
         mm = _base_moved(run, mm, samples)
-    return mm
+    return mm, samples
 
 
 # The base may move where the shell grows by at most this factor.

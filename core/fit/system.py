@@ -52,8 +52,10 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, s
         AtW = A.T.multiply(w[None, :]).tocsr()
         M = M + AtW @ A
         b += AtW @ rhs
-    L = uniform_laplacian(n, T)
-    reg = [smoothness * (L.T @ L) + 1e-9 * sp.eye(n)]
+    # Smoothness of the displacement as a length (|D_k| d_k): the same weight whether the
+    # directions are unit or scaled by folded bounds (``core.bounds.baked``).
+    LS = uniform_laplacian(n, T) @ sp.diags(np.linalg.norm(D, axis=1))
+    reg = [smoothness * (LS.T @ LS) + 1e-9 * sp.eye(n)]
     prior = [1e-9 * d]
     if joint:
         k = base_stiffness * weights.sum() * (1 + (3 * slopes if slopes > 0 else 0)) / nb
