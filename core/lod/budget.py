@@ -1,0 +1,153 @@
+"""Levels within a budget of micro-triangles (ours): cut the weakest subdivisions, exchange
+ups for roll-backs where the image error says so, roll back the least useful faces."""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from .counts import balance_levels_adjacency
+from .criteria import relative_gain
+
+
+def trim_to_budget(old_levels: np.ndarray, new_levels: np.ndarray, gains: np.ndarray,
+                   cost: Callable[[np.ndarray], float], budget: float) -> np.ndarray:
+    """Keep only the highest-gain subdivisions of ``old → new`` so that ``cost(levels) ≤ budget``.
+
+    Dropping a subdivision chosen by Algorithm 1 never breaks the ±1 rule (its neighbours were
+    all at least at the old level), so this is a greedy cut along the gain order.
+    """
+    old = np.asarray(old_levels, dtype=np.int64)
+    new = np.asarray(new_levels, dtype=np.int64).copy()
+    if budget <= 0 or cost(new) <= budget:
+        return new
+    cand = np.flatnonzero(new > old)
+    order = cand[np.argsort(-np.asarray(gains)[cand], kind="stable")]
+    lo, hi = 0, len(order)                      # binary search on how many to keep
+    while lo < hi:
+        mid = (lo + hi + 1) // 2
+        trial = old.copy()
+        trial[order[:mid]] = new[order[:mid]]
+        if cost(trial) <= budget:
+            lo = mid
+        else:
+            hi = mid - 1
+    out = old.copy()
+    out[order[:lo]] = new[order[:lo]]
+    return out
+
+
+def exchange_to_budget(levels: np.ndarray, level: int, err_prev: np.ndarray, err_now: np.ndarray,
+                       face_adjacency: np.ndarray, cost: Callable[[np.ndarray], float],
+                       budget: float, min_level: int = 0) -> np.ndarray:
+    """Spend a binding budget where it helps most (ours): subdivide faces at ``level`` to
+    ``level + 1`` paid for by rolling other faces at ``level`` back to ``level - 1``.
+
+    Expected value of going up: ``err_now · gain`` (the last level's relative improvement,
+    assumed to repeat); value lost going down: ``err_prev - err_now`` (what the last level
+    bought). A subdivision is taken while its value exceeds that of the roll-backs paying for
+    it; the ±1 rule is restored by raising, and what then overflows the budget is cut.
+    """
+    lv = np.asarray(levels, dtype=np.int64).copy()
+    adj = np.asarray(face_adjacency)
+    ok = adj >= 0
+    at = lv == level
+    e0, e1 = np.asarray(err_prev, float), np.asarray(err_now, float)
+    gain = relative_gain(e0, e1)
+    up_val = e1 * np.clip(gain, 0, None)
+    down_val = np.clip(e0 - e1, 0, None)
+    nb_lo = np.where(ok, lv[np.maximum(adj, 0)], 99).min(axis=1)
+    nb_hi = np.where(ok, lv[np.maximum(adj, 0)], -1).max(axis=1)
+    ups = np.flatnonzero(at & (nb_lo >= level) & (up_val > 0))
+    ups = ups[np.argsort(-up_val[ups], kind="stable")]
+    downs = np.flatnonzero(at & (nb_hi <= level)) if level - 1 >= min_level else np.array([], int)
+    downs = downs[np.argsort(down_val[downs], kind="stable")]
+    c_up = 3 * 4 ** level
+    c_down = 3 * 4 ** (level - 1)
+    slack = budget - cost(lv)
+    taken_up, taken_down = [], []
+    # state: 0 free, 1 going up, -1 going down; an up may not touch a down across an edge.
+    state = np.zeros(len(lv), np.int64)
+
+    def touches(f, kind):
+        a = adj[f]
+        a = a[a >= 0]
+        return bool((state[a] == kind).any())
+
+    j = 0
+    for f in ups:
+        if state[f] != 0 or touches(f, -1):
+            continue
+        if slack >= c_up:
+            taken_up.append(f)
+            state[f] = 1
+            slack -= c_up
+            continue
+        need = int(np.ceil((c_up - slack) / c_down))
+        cand = []
+        k = j
+        while len(cand) < need and k < len(downs):
+            g = downs[k]
+            k += 1
+            if g == f or state[g] != 0 or touches(g, 1) or g in adj[f]:
+                continue
+            cand.append(g)
+        if len(cand) < need or down_val[cand].sum() >= up_val[f]:
+            break
+        taken_up.append(f)
+        state[f] = 1
+        taken_down += cand
+        state[cand] = -1
+        slack += need * c_down - c_up
+        j = k
+    new = lv.copy()
+    new[taken_down] = level - 1
+    new[taken_up] = level + 1
+    new = balance_levels_adjacency(adj, new)
+    if cost(new) > budget:           # balancing raised some roll-backs: cut the weakest ups
+        order = np.array(taken_up)[::-1]
+        lo, hi = 0, len(order)
+        while lo < hi:
+            mid = (lo + hi) // 2
+            trial = new.copy()
+            trial[order[:mid]] = level
+            trial = balance_levels_adjacency(adj, trial)
+            if cost(trial) <= budget:
+                hi = mid
+            else:
+                lo = mid + 1
+        new[order[:lo]] = level
+        new = balance_levels_adjacency(adj, new)
+        if cost(new) > budget:
+            return lv
+    return new
+
+
+def roll_back_to_budget(levels: np.ndarray, gains_by_level: dict[int, np.ndarray],
+                        face_adjacency: np.ndarray, cost: Callable[[np.ndarray], float],
+                        budget: float, min_level: int = 0) -> np.ndarray:
+    """Lower the least useful faces (smallest gain of their level) until ``cost ≤ budget``,
+    only where the ±1 rule allows (no edge neighbour above the face's level)."""
+    lv = np.asarray(levels, dtype=np.int64).copy()
+    adj = np.asarray(face_adjacency)
+    ok = adj >= 0
+    while budget > 0 and cost(lv) > budget:
+        top = lv.max()
+        if top <= min_level:
+            break
+        nb_hi = np.where(ok, lv[np.maximum(adj, 0)], -10).max(axis=1)
+        cand = np.flatnonzero((lv == top) & (nb_hi <= top))
+        if cand.size == 0:
+            break
+        g = np.asarray(gains_by_level.get(int(top), np.zeros(len(lv))))[cand]
+        order = cand[np.argsort(g, kind="stable")]
+        # Each rollback at level `top` saves 3 * 4^(top-1) triangles; take enough in one go,
+        # but never more than the candidates, then re-check (neighbour constraints change).
+        excess = cost(lv) - budget
+        per = cost(np.where(np.arange(len(lv)) == order[0], lv - 1, lv))
+        saving = max(cost(lv) - per, 1e-9)
+        k = int(min(len(order), max(1, np.ceil(excess / saving))))
+        # A face and its edge neighbour may both roll back together only if that keeps ±1:
+        # they are at the same level, so after both go down it still holds.
+        lv[order[:k]] -= 1
+    return lv
