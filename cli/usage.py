@@ -6,7 +6,8 @@ import argparse
 from pathlib import Path
 
 from ..core.io.output_set import OutputError, OutputSet, check_output_folder, output_names
-from ..core.settings import SettingsError, apply_overrides, preset
+from ..core.overrides import apply_overrides
+from ..core.settings import SettingsError, preset
 from .args import BatchError, base_overrides, budget_overrides, find_inputs, result_suffixes
 
 DEMO_NAME = "demo_rock"

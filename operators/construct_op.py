@@ -14,7 +14,8 @@ import bpy
 from bpy.props import EnumProperty
 
 from ..core.outcome import Outcome
-from ..core.settings import SettingsError, apply_overrides, preset
+from ..core.overrides import apply_overrides
+from ..core.settings import SettingsError, preset
 from . import base_ops, bl_mesh, cameras_io, job, pipeline, warmup, writeback
 
 

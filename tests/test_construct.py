@@ -5,7 +5,8 @@ import pytest
 
 from core.construct import (ConstructCancelled, ConstructError, construct, staged_baseline)
 from core.mesh import TriMesh
-from core.settings import SettingsError, apply_overrides, preset
+from core.overrides import apply_overrides
+from core.settings import SettingsError, preset
 
 
 def icosphere(n):

@@ -7,7 +7,8 @@ import math
 
 import pytest
 
-from core.settings import PRESETS, ConstructSettings, SettingsError, apply_overrides, preset
+from core.overrides import apply_overrides
+from core.settings import PRESETS, ConstructSettings, SettingsError, preset
 from core.settings_rules import CHOICES, RANGES
 
 
