@@ -100,7 +100,7 @@ class MICROMESH_OT_make_base(bpy.types.Operator):
         """core.base with the panel's targets, mapped as Construct maps them; the builder's
         warnings and notes for the report."""
         from ..core.base import base_for
-        from .construct_op import panel_settings
+        from .scene_settings import panel_settings
 
         wm = context.window_manager
         wm.progress_begin(0, 100)

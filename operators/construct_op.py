@@ -14,9 +14,9 @@ import bpy
 from bpy.props import EnumProperty
 
 from ..core.outcome import Outcome
-from ..core.overrides import apply_overrides
-from ..core.settings import SettingsError, preset
+from ..core.settings import SettingsError
 from . import base_ops, bl_mesh, cameras_io, job, pipeline, warmup, writeback
+from .scene_settings import scene_settings
 
 
 @dataclass
@@ -26,37 +26,6 @@ class Prepared:
     source: bpy.types.Object
     base_obj: bpy.types.Object | None
     work: object  # callable(progress, should_stop) -> core.outcome.Outcome
-
-
-def panel_overrides(s) -> dict:
-    """The panel's base-mesh targets and storage budget as settings."""
-    out = {"base_max_error": s.base_max_error, "base_min_quality": s.base_min_quality,
-           "base_ratio": s.ratio if s.decimate_mode == "RATIO" else 0.0,
-           "base_faces": s.target_faces if s.decimate_mode == "TARGET" else 0,
-           "budget_ratio": 0.0, "budget_micro_triangles": 0, "budget_bytes": 0}
-    if s.budget_mode == "RATIO":
-        out["budget_ratio"] = s.budget_value
-    elif s.budget_mode == "TRIANGLES":
-        out["budget_micro_triangles"] = int(round(s.budget_value))
-    elif s.budget_mode == "BYTES":
-        out["budget_bytes"] = int(round(s.budget_value))
-    return out
-
-
-def panel_settings(scene):
-    """The scene's preset with the panel's base targets and budget (what Make Base uses)."""
-    s = scene.micromesh
-    return apply_overrides(preset(s.preset), panel_overrides(s))
-
-
-def scene_settings(scene):
-    """The construction settings of the scene: :func:`panel_settings`, then the text
-    overrides and the preferences (device, threads)."""
-    from .. import preferences
-
-    s = scene.micromesh
-    return apply_overrides(panel_settings(scene),
-                           s.overrides.split() + [f"device={preferences.device()}"])
 
 
 def prepare(context, method: str = "auto") -> Prepared:

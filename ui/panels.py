@@ -122,7 +122,7 @@ def _estimate_text(context) -> str:
     """The construction's time and memory estimate for the source (core.construct.estimate),
     or "" where there is no source or the settings do not read."""
     from ..core.construct.estimate import estimate
-    from ..operators import base_ops, construct_op
+    from ..operators import base_ops, scene_settings
 
     src = base_ops.source_object(context)
     if src is None or src.type != "MESH":
@@ -130,7 +130,7 @@ def _estimate_text(context) -> str:
     me = src.data
     faces = len(me.loops) - 2 * len(me.polygons)          # its triangles, counted in O(1)
     try:
-        settings = construct_op.scene_settings(context.scene)
+        settings = scene_settings.scene_settings(context.scene)
     except (ValueError, TypeError):
         return ""
     return "Estimate: " + estimate(max(faces, 1), settings).text()
