@@ -100,7 +100,7 @@ def report_data(metrics: dict, history: dict, levels: np.ndarray, settings_chang
     m = {k: metrics.get(k) for k, _, _ in ROWS if k in metrics}
     if metrics.get("bytes"):
         m["compression"] = input_bytes / metrics["bytes"]
-    for key in ("residual_lod", "base_fit"):               # finalise.fitted's decisions
+    for key in ("residual_lod", "base_fit", "lp_bounds"):  # finalise's decisions
         if isinstance(metrics.get(key), dict):
             m[key] = dict(metrics[key])
     return {"metrics": m, "levels_hist": np.bincount(levels, minlength=6).tolist(),
@@ -191,6 +191,9 @@ def _table(ax, data: dict) -> None:
     r = data["metrics"].get("base_fit")
     if r:
         rows.append(["base moved by the fit", "kept" if r["kept"] else "refused"])
+    r = data["metrics"].get("lp_bounds")
+    if r:
+        rows.append(["least-volume bounds", "kept" if r["kept"] else "refused"])
     rows += [[f"time: {k}", f"{v:.1f} s"] for k, v in sorted(data["timings"].items())
              if v >= 0.5]
     rows += [["device", data.get("device", "")], ["threads", str(data.get("threads", ""))]]

@@ -77,11 +77,29 @@ def test_least_volume_bounds_thin_the_shell(scene):
     ref, base = scene
     tight = construct(ref, base, None, small(lp_bounds=False))
     least = construct(ref, base, None, small())
+    note = least.metrics["lp_bounds"]
+    assert note["kept"] and note["shading_error_after"] <= note["shading_error_before"]
+    assert "lp_bounds" not in tight.metrics
     assert least.metrics["shell_volume"] < 0.95 * tight.metrics["shell_volume"]
     assert least.metrics["psnr"] > tight.metrics["psnr"] - 0.3
     assert np.allclose(least.bounds.bias, 0) and np.allclose(least.bounds.scale,
                                                              tight.bounds.scale)   # folded
     assert {"bounds", "fit"} <= set(least.timings)
+
+
+def test_least_volume_bounds_are_refused_where_they_hurt(scene, monkeypatch):
+    """Bounds that clip most micro-vertices (a stand-in for a refit that loses detail) raise
+    the shading error: the tight bounds' fold stays, and the run says so."""
+    import core.construct.finalise as fin
+    from core.bounds import DirectionBounds
+
+    ref, base = scene
+    monkeypatch.setattr(fin, "lp_bounds", lambda mm: DirectionBounds(
+        np.zeros(mm.base.n_vertices), np.full(mm.base.n_vertices, 1e-6)))
+    r = construct(ref, base, None, small())
+    note = r.metrics["lp_bounds"]
+    assert not note["kept"] and note["shading_error_after"] > note["shading_error_before"]
+    assert np.isclose(r.metrics["shell_volume"], note["shell_before"], rtol=1e-6)
 
 
 def test_subdivision_keeps_surface(scene):

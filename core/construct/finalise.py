@@ -1,9 +1,10 @@
 """The end of a construction: final levels, balance, the least-squares fit of the
 displacements (``core.fit``), levels moved to where the fit still misses the reference and
 fitted again (``choose_levels.residual_exchange``; kept only where that lowers the shading
-error), bounds of least shell volume folded into the base and the directions (what a file
-holds: ``core.bounds.baked``) and the displacements fitted again under them, metrics, and the result in the
-caller's frame."""
+error), bounds folded into the base and the directions (what a file holds:
+``core.bounds.baked``; those of least shell volume, with the displacements fitted again under
+them, where that does not raise the shading error), metrics, and the result in the caller's
+frame."""
 from __future__ import annotations
 
 import time
@@ -57,18 +58,31 @@ def finalise(run: RunState, params: Parameters, reference: TriMesh, base: TriMes
 
 
 def folded(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
-    """``mm`` with bounds folded into its base and directions (``core.bounds.baked``). After a
-    fit (``samples``) and with ``lp_bounds``, first the least-volume bounds
-    (``core.bounds.lp_bounds``), the displacements fitted again under them (baking such
-    bounds moves micro-vertices: neighbours' bounds differ more), then the tight bounds of
-    the result, which are nearly unit and bake almost exactly."""
-    if run.s.lp_bounds and samples is not None:
-        with run.timer.phase("bounds"):
-            mm = baked(mm, lp_bounds(mm))
-        with run.timer.phase("fit"):
-            mm = _fit(run, mm, samples, rounds=1)
+    """``mm`` with bounds folded into its base and directions (``core.bounds.baked``): its
+    tight bounds, or, after a fit (``samples``) and with ``lp_bounds``, the least-volume
+    bounds (``core.bounds.lp_bounds``) with the displacements fitted again under them (baking
+    such bounds moves micro-vertices: neighbours' bounds differ more) and then the tight
+    bounds of the result, which are nearly unit and bake almost exactly. That second way is
+    kept where its shading error is no larger (on the CAD part the refit can lose detail);
+    ``run.notes["lp_bounds"]`` says what happened."""
     with run.timer.phase("finalize"):
-        return baked(mm, tight_bounds(mm))
+        tight = baked(mm, tight_bounds(mm))
+    if not run.s.lp_bounds or samples is None:
+        return tight
+    with run.timer.phase("bounds"):
+        least = baked(mm, lp_bounds(mm))
+    with run.timer.phase("fit"):
+        least = _fit(run, least, samples, rounds=1)
+    with run.timer.phase("bounds"):
+        least = baked(least, tight_bounds(least))
+        before, after = (surface_errors(m, samples)[1].sum() for m in (tight, least))
+        shells = [micromesh_shell_volume(m, unit_bounds(m.base.n_vertices))
+                  for m in (tight, least)]
+    keep = bool(after <= before)
+    run.notes["lp_bounds"] = {"kept": keep, "shading_error_before": float(before),
+                              "shading_error_after": float(after),
+                              "shell_before": float(shells[0]), "shell_after": float(shells[1])}
+    return least if keep else tight
 
 
 def fitted(run: RunState, mm: MicroMesh) -> tuple[MicroMesh, tuple]:
