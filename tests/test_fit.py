@@ -140,9 +140,10 @@ def test_large_reference_faces_are_sampled_densely():
     assert err_dense < 0.01 and err_sparse > 2 * err_dense, (err_dense, err_sparse)
 
 
-def test_the_solve_matches_a_factorisation_and_falls_back_to_one():
+def test_the_solve_matches_a_factorisation_and_falls_back_to_one_or_stops_early():
     """CG from a start point gives the factorisation's answer; where it cannot converge in
-    the iterations allowed, the factorisation's answer is returned."""
+    the iterations allowed, the factorisation's answer is returned, or, if asked, its last
+    iterate."""
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
@@ -160,3 +161,9 @@ def test_the_solve_matches_a_factorisation_and_falls_back_to_one():
                                    callback=lambda _: steps.append(1))
     assert len(steps) == 2
     np.testing.assert_allclose(short, exact, rtol=1e-9, atol=1e-12 * np.abs(exact).max())
+    # exact=False: the iterate after maxiter steps, not the factorisation's answer, and a
+    # better one than the start by the system's energy ½xᵀMx − bᵀx.
+    partial = solve_normal_equations(M, b, np.zeros(len(bv)), maxiter=2, exact=False)
+    energy = lambda x: 0.5 * x @ (M @ x) - b @ x  # noqa: E731
+    assert np.abs(partial - exact).max() > 1e-3 * np.abs(exact).max()
+    assert energy(exact) <= energy(partial) < energy(np.zeros(len(bv)))

@@ -45,8 +45,13 @@ def fit_micromesh(mm: MicroMesh, reference: TriMesh, smoothness: float = 1e-3,
     offsets = np.zeros((nb, 3))
     for _ in range(iterations):
         M, b = normal_equations(mm, d, samples, smoothness, slopes, base_stiffness, offsets)
-        x = solve_normal_equations(M, b, np.concatenate([d, np.zeros(len(b) - n)]),
-                                   blocks=nb if base_stiffness > 0 else 0)
+        if base_stiffness > 0:
+            # 300 CG steps, converged or not: as good as a full solve (counter_cad's
+            # micro-mesh: 200 to 2000 steps all 33.34 dB; 2000 did not converge).
+            x = solve_normal_equations(M, b, np.concatenate([d, np.zeros(3 * nb)]),
+                                       maxiter=300, blocks=nb, exact=False)
+        else:
+            x = solve_normal_equations(M, b, d)
         d = x[:n]
         if base_stiffness > 0:
             offsets = offsets + x[n:].reshape(3, nb).T
