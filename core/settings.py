@@ -146,7 +146,8 @@ PRESETS: dict[str, dict] = {
                  w_iso=0.1, lod="uniform", time_limit_s=55.0),
     # Under five minutes on a 2-core CPU: what batch.py and the panel run unless told otherwise
     # (the time limit counts from the start of the base building; the fit, the metrics and the
-    # file writing come after it).
+    # file writing come after it). 100 iterations: the fit at the end redoes what 400 bought
+    # (docs/results.md, seventh table).
     "default": dict(iterations=100, subdivide_at=(6, 18, 37, 62), max_level=4,
                     views_per_iter=12, train_resolution=256, lod_resolution=192,
                     lr_base=3e-4, lr_disp=1e-4, w_iso=0.1, w_range=0.03, lod="uniform",
