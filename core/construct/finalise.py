@@ -18,6 +18,7 @@ from ..microtopology import balance_levels
 from ..fit import fit_micromesh, fit_samples, surface_errors
 from .choose_levels import final_levels, residual_exchange
 from .evaluate import evaluate
+from .scene import face_errors
 from .frame import to_caller_frame
 from .params import Parameters
 from .state import RunState
@@ -63,7 +64,8 @@ def folded(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
     bounds (``core.bounds.lp_bounds``) with the displacements fitted again under them (baking
     such bounds moves micro-vertices: neighbours' bounds differ more) and then the tight
     bounds of the result, which are nearly unit and bake almost exactly. That second way is
-    kept where its shading error is no larger (on the CAD part the refit can lose detail);
+    kept where its image error (the LOD views' L1, ``scene.face_errors``) is no larger; the
+    samples' shading error, recorded beside it, misjudged it both ways (counter_cad, beast);
     ``run.notes["lp_bounds"]`` says what happened."""
     with run.timer.phase("finalize"):
         tight = baked(mm, tight_bounds(mm))
@@ -78,9 +80,13 @@ def folded(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
         before, after = (surface_errors(m, samples)[1].sum() for m in (tight, least))
         shells = [micromesh_shell_volume(m, unit_bounds(m.base.n_vertices))
                   for m in (tight, least)]
-    keep = bool(after <= before)
+        images = [face_errors(m, run.scene, run.lod_cams, "lod", run.s, run.ref_tree).sum()
+                  for m in (tight, least)]
+    keep = bool(images[1] <= images[0])
     run.notes["lp_bounds"] = {"kept": keep, "shading_error_before": float(before),
                               "shading_error_after": float(after),
+                              "image_error_before": float(images[0]),
+                              "image_error_after": float(images[1]),
                               "shell_before": float(shells[0]), "shell_after": float(shells[1])}
     return least if keep else tight
 
