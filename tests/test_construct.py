@@ -78,7 +78,7 @@ def test_least_volume_bounds_thin_the_shell(scene):
     tight = construct(ref, base, None, small(lp_bounds=False))
     least = construct(ref, base, None, small())
     note = least.metrics["lp_bounds"]
-    assert note["kept"] and note["image_error_after"] <= note["image_error_before"]
+    assert note["kept"] and note["image_error_after"] <= 1.01 * note["image_error_before"]
     assert "lp_bounds" not in tight.metrics
     assert least.metrics["shell_volume"] < 0.95 * tight.metrics["shell_volume"]
     assert least.metrics["psnr"] > tight.metrics["psnr"] - 0.3
@@ -98,7 +98,7 @@ def test_least_volume_bounds_are_refused_where_they_hurt(scene, monkeypatch):
         np.zeros(mm.base.n_vertices), np.full(mm.base.n_vertices, 1e-6)))
     r = construct(ref, base, None, small())
     note = r.metrics["lp_bounds"]
-    assert not note["kept"] and note["image_error_after"] > note["image_error_before"]
+    assert not note["kept"] and note["image_error_after"] > 1.01 * note["image_error_before"]
     assert np.isclose(r.metrics["shell_volume"], note["shell_before"], rtol=1e-6)
 
 
