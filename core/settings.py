@@ -71,7 +71,7 @@ class ConstructSettings:
     base_warm_up: bool = True        # at level 0 only the base moves (displacements 0)
     final_fit: bool = True           # fit the displacements to the reference at the end
                                      # (core.fit, least squares; ours)
-    fit_smoothness: float = 1e-3     # weight of |L d|² in the fit
+    fit_smoothness: float = 1e-3     # weight of |L (|D| d)|² in the fit
     fit_slopes: float = 0.1          # weight of the micro-triangles' tilt against the samples'
     fit_base_stiffness: float = 1e-3  # how firmly the fit holds the base vertices (0: fixed)
     residual_lod: float = 0.15       # after the fit, this fraction of faces may go up a level
