@@ -186,8 +186,8 @@ def _table(ax, data: dict) -> None:
             if data["metrics"].get(k) is not None]
     r = data["metrics"].get("residual_lod")
     if r:
-        rows.append(["levels moved after the fit", f"{'kept' if r['kept'] else 'refused'}: "
-                     f"{r['faces_up']} up, {r['faces_down']} down"])
+        rows.append(["levels moved after the fit", "kept" if r["kept"] else "refused"])
+        rows.append(["faces moved up / down", f"{r['faces_up']} / {r['faces_down']}"])
     r = data["metrics"].get("base_fit")
     if r:
         rows.append(["base moved by the fit", "kept" if r["kept"] else "refused"])
