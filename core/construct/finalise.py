@@ -3,7 +3,7 @@ displacements (``core.fit``), levels moved to where the fit still misses the ref
 fitted again (``choose_levels.residual_exchange``; kept only where that lowers the shading
 error), bounds folded into the base and the directions (what a file holds:
 ``core.bounds.baked``; those of least shell volume, with the displacements fitted again under
-them, where that does not raise the shading error), metrics, and the result in the caller's
+them, where the image error rises by 1 % at most), metrics, and the result in the caller's
 frame."""
 from __future__ import annotations
 
@@ -18,9 +18,9 @@ from ..microtopology import balance_levels
 from ..fit import fit_micromesh, fit_samples, surface_errors
 from .choose_levels import final_levels, residual_exchange
 from .evaluate import evaluate
-from .scene import face_errors
 from .frame import to_caller_frame
 from .params import Parameters
+from .scene import face_errors
 from .state import RunState
 from .types import ConstructResult
 
