@@ -1,6 +1,6 @@
 """The construction settings a scene asks for: its preset, the panel's base targets and
-budget, the text overrides and the preferences (device). bpy-free itself: it reads the
-scene's ``micromesh`` property group."""
+budget, the text overrides and the preferences (device), read from the scene's ``micromesh``
+property group."""
 from __future__ import annotations
 
 from ..core.overrides import apply_overrides
