@@ -5,7 +5,8 @@ alternative), on the same normal equations.
 A noisy sphere of about four reference faces per micro-triangle; a micro-mesh on an icosphere
 base at uniform levels, its displacements baked by projection (as a construction's are close
 to the answer when the fit starts). Per size: samples, unknowns, assembling the system (closest
-points and the sparse products), each solve, the CG iterations and the relative difference of
+points, then the sums per micro-triangle the fit uses, and beside them the simplest way: the
+sparse products of its rows), each solve, the CG iterations and the relative difference of
 the solutions; then the whole fit (two rounds) as a construction runs it.
 
     python bench/fit_bench.py [--levels 3 4 5] [--json FILE]
@@ -44,13 +45,17 @@ def main() -> None:
         ref, mm = case(level)
         samples = fit_samples(mm, ref)
         t_asm, (M, b) = timed(lambda: normal_equations(mm, mm.displacements, samples, 1e-3, 0.1))
+        t_rows, (Mr, _) = timed(lambda: normal_equations(mm, mm.displacements, samples, 1e-3,
+                                                         0.1, by_rows=True))
+        assert abs(M - Mr).max() < 1e-12 * abs(M).max(), "the two assemblies differ"
         t_lu, x_lu = timed(lambda: spla.spsolve(M.tocsc(), b))
         iters = []
         t_cg, x_cg = timed(lambda: solve_normal_equations(M, b, mm.displacements,
                                                           callback=lambda _: iters.append(1)))
         t_fit, _ = timed(lambda: fit_displacements(mm, ref, samples=samples))
         rec = {"level": level, "micro_vertices": mm.n_vertices, "samples": len(samples[0]),
-               "assemble_s": t_asm, "superlu_s": t_lu, "cg_s": t_cg, "cg_iterations": len(iters),
+               "assemble_s": t_asm, "assemble_rows_s": t_rows, "superlu_s": t_lu, "cg_s": t_cg,
+               "cg_iterations": len(iters),
                "speed_up": t_lu / t_cg,
                "relative_difference": float(np.linalg.norm(x_cg - x_lu) / np.linalg.norm(x_lu)),
                "fit_s": t_fit}

@@ -6,8 +6,8 @@ import pytest
 from core import primitives
 from core.bake import bake_displacements
 from core.closest import ClosestPointIndex
-from core.fit import (FitError, fit_displacements, fit_micromesh, fit_samples, reference_samples,
-                      surface_errors)
+from core.fit import (FitError, fit_displacements, fit_micromesh, fit_samples, normal_equations,
+                      reference_samples, surface_errors)
 from core.laplacian import uniform_laplacian
 from core.mesh import TriMesh
 from core.micromesh import MicroMesh
@@ -97,6 +97,26 @@ def test_moving_the_base_too_brings_the_surface_closer(bumpy):
     stiff = fit_micromesh(baked, ref, samples=samples, base_stiffness=1e6)
     assert np.abs(stiff.base.vertices - baked.base.vertices).max() < 1e-6 * edge
     np.testing.assert_allclose(stiff.displacements, alone.displacements, atol=1e-3 * edge)
+
+
+def test_the_per_triangle_system_is_the_rows_system(bumpy):
+    """The displacement-only rounds assemble their normal equations per micro-triangle, the
+    joint rounds from the rows themselves: both are the same least squares, so the rows'
+    system (alone, and as the joint system's displacement block) is the per-triangle one."""
+    ref, baked = bumpy
+    samples = fit_samples(baked, ref)
+    n = baked.n_vertices
+    for slopes in (0.0, 0.1):
+        M, b = normal_equations(baked, baked.displacements, samples, 1e-3, slopes, chunk=5000)
+        Mj, bj = normal_equations(baked, baked.displacements, samples, 1e-3, slopes,
+                                  base_stiffness=1e-3)
+        Mr, br = normal_equations(baked, baked.displacements, samples, 1e-3, slopes,
+                                  by_rows=True)
+        scale = abs(M).max()
+        for other, rhs in ((Mr, br), (Mj[:n, :n], bj[:n])):
+            assert abs(M - other).max() < 1e-12 * scale
+            np.testing.assert_allclose(b, rhs, rtol=0, atol=1e-12 * abs(b).max())
+        assert M.shape == (n, n) and abs(M - M.T).max() < 1e-12 * scale
 
 
 def test_bad_settings(bumpy):

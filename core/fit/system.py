@@ -21,7 +21,8 @@ from ..micromesh import MicroMesh
 
 def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, slopes: float,
                      base_stiffness: float = 0.0, offsets: np.ndarray | None = None,
-                     chunk: int = 1 << 17) -> tuple[sp.csr_matrix, np.ndarray]:
+                     chunk: int = 1 << 17, by_rows: bool = False
+                     ) -> tuple[sp.csr_matrix, np.ndarray]:
     """(M, b) of one fit round: the samples matched to their closest points on the
     micro-surface of displacements ``d`` (and base vertices moved by ``offsets`` (nb, 3)),
     then the weighted least-squares system, summed over ``chunk`` samples at a time (the rows
@@ -30,6 +31,10 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, s
     Unknowns: the displacements (n,); with ``base_stiffness`` > 0 also increments of the base
     offsets (3 nb, x then y then z), held by ``base_stiffness`` · (weight per base vertex) ·
     |offsets|². M is (n, n) or (n + 3 nb, n + 3 nb).
+
+    Over the displacements alone the system is summed per micro-triangle
+    (``_displacement_system``); with the base, or ``by_rows`` (the general way, which the
+    tests and ``bench/fit_bench.py`` compare it with), from the rows themselves.
     """
     W = mm.topology.interp.tocsr()
     n, nb = mm.n_vertices, mm.base.n_vertices
@@ -42,16 +47,12 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, s
     corners = T[tri]                                          # (s, 3)
     B = barycentrics(cp, X[corners])
     joint = base_stiffness > 0
-    size = n + 3 * nb if joint else n
-    M, b = sp.csr_matrix((size, size)), np.zeros(size)
-    for lo in range(0, len(pts), chunk):
-        part = slice(lo, lo + chunk)
-        C, N, t, w = _rows(corners[part], B[part], pts[part], normals[part], weights[part],
-                           n, slopes)
-        A, rhs = _columns(C, N, t, P, D, W if joint else None)
-        AtW = A.T.multiply(w[None, :]).tocsr()
-        M = M + AtW @ A
-        b += AtW @ rhs
+    if joint or by_rows:
+        M, b = _row_system(corners, B, pts, normals, weights, P, D, W if joint else None,
+                           n + 3 * nb if joint else n, slopes, chunk)
+    else:
+        M, b = _displacement_system(corners, B, pts, normals, weights, tri, T, P, D, slopes,
+                                    chunk)
     # Smoothness of the displacement as a length (|D_k| d_k): the same weight whether the
     # directions are unit or scaled by folded bounds (``core.bounds.baked``).
     LS = uniform_laplacian(n, T) @ sp.diags(np.linalg.norm(D, axis=1))
@@ -62,6 +63,55 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, s
         reg.append(k * sp.eye(3 * nb))
         prior.append(-k * offsets.T.reshape(-1))        # holds the offsets, not the increments
     return (M + sp.block_diag(reg)).tocsr(), b + np.concatenate(prior)
+
+
+def _displacement_system(corners, B, pts, normals, weights, tri, T, P, D, slopes, chunk):
+    """(M, b) over the displacements alone, summed per micro-triangle: a sample matched to a
+    triangle with corners k (barycentrics B_k, g_k = n·D_k, h_k = n·P_k) adds
+    w g_i g_j (B_i B_j + slopes (3 δ_ij − 1)) to M_ij (its point row and its three slope
+    rows) and w (B_i g_i (n·s − Σ_k B_k h_k) + slopes g_i (Σ_k h_k − 3 h_i)) to b_i. The
+    same system as ``_row_system``'s without base columns, assembled without
+    them: 9 entries per micro-triangle instead of sparse products over 4 rows per sample."""
+    n, m = len(P), len(T)
+    G = np.zeros((m, 3, 3))
+    b = np.zeros(n)
+    mask = 3 * np.eye(3) - 1
+    for lo in range(0, len(pts), chunk):
+        part = slice(lo, lo + chunk)
+        c, Bc, nrm, w = corners[part], B[part], normals[part], weights[part]
+        g = np.einsum("sa,ska->sk", nrm, D[c])
+        h = np.einsum("sa,ska->sk", nrm, P[c])
+        point = (nrm * pts[part]).sum(1) - (Bc * h).sum(1)
+        a = Bc * g
+        vals = (a[:, :, None] * a[:, None, :] + slopes * mask * (g[:, :, None] * g[:, None, :]))
+        vals *= w[:, None, None]
+        for i in range(3):
+            for j in range(i, 3):
+                G[:, i, j] += np.bincount(tri[part], weights=vals[:, i, j], minlength=m)
+        rhs = w[:, None] * (a * point[:, None] + slopes * g * (h.sum(1)[:, None] - 3 * h))
+        for i in range(3):
+            b += np.bincount(c[:, i], weights=rhs[:, i], minlength=n)
+    iu = [(i, j) for i in range(3) for j in range(3)]
+    rows = np.concatenate([T[:, i] for i, j in iu])
+    cols = np.concatenate([T[:, j] for i, j in iu])
+    data = np.concatenate([G[:, min(i, j), max(i, j)] for i, j in iu])
+    return sp.csr_matrix((data, (rows, cols)), shape=(n, n)), b
+
+
+def _row_system(corners, B, pts, normals, weights, P, D, W, size, slopes, chunk):
+    """(M, b) from the rows themselves: over the displacements and, with ``W``, the base
+    vertices."""
+    n = len(P)
+    M, b = sp.csr_matrix((size, size)), np.zeros(size)
+    for lo in range(0, len(pts), chunk):
+        part = slice(lo, lo + chunk)
+        C, N, t, w = _rows(corners[part], B[part], pts[part], normals[part], weights[part],
+                           n, slopes)
+        A, rhs = _columns(C, N, t, P, D, W)
+        AtW = A.T.multiply(w[None, :]).tocsr()
+        M = M + AtW @ A
+        b += AtW @ rhs
+    return M, b
 
 
 def _columns(C, N, t, P, D, W):
