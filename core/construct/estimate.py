@@ -4,7 +4,8 @@ settings before any heavy work, and the refusal of a run that will not fit in me
 The model is linear in the work each phase does (faces decimated, micro-triangles rendered
 per iteration and view pixel, micro-triangles fitted, faces rendered for the metrics); its
 coefficients were fitted to five `default` constructions of ``bench/construct_bench.py``
-(60k-100k faces) on the developers' 2-core x86-64 machine; every run's metrics keep the
+(60k-100k faces) on the developers' 2-core x86-64 machine, the memory's refitted to runs of
+up to 2.15M micro-triangles; every run's metrics keep the
 estimate beside the measured peak, and ``bench/scale_bench.py`` prints both for larger inputs.
 Times are for that machine; memory is the process's peak resident size.
 """
@@ -26,12 +27,16 @@ _T_ITER_PER_MICRO = 1.56e-6
 _T_ITER_PER_PIXEL = 9.0e-8
 _T_FIT_PER_MICRO = 1.7e-4
 _T_METRICS_PER_FACE = 3.5e-5
-# Bytes: the interpreter and libraries; per micro-triangle (the micro-mesh, the optimiser's
-# state, the fit's samples, matches and normal equations: the peak is the fit's); per cached
-# image pixel; per input face (the reference and its topology: small beside the rest).
-_M_FIXED = 300 * _MB
+# Bytes: the interpreter, the libraries and what does not grow with the input; per
+# micro-triangle (the micro-mesh, the optimiser's state, the fit's samples, matches and normal
+# equations: the peak is the fit's); per cached image pixel; per input face (the reference and
+# its topology: small beside the rest). Refitted to the measured peaks of 69k-2.15M
+# micro-triangle runs (docs/results.md: 1.4-2.0 GB at 140k-200k, 7.1 GB at 2.15M), at or
+# within 3 % under each: the first fit (6500 per micro-triangle, from 60k-100k-face inputs
+# only) had doubled the largest.
+_M_FIXED = 1100 * _MB
 _M_PER_FACE = 0
-_M_PER_MICRO = 6500
+_M_PER_MICRO = 3000
 _M_PER_PIXEL = 40
 
 @dataclass
