@@ -137,6 +137,10 @@ def test_exchange_to_budget_moves_triangles_to_where_they_help():
     # Nothing worth paying for: unchanged.
     same = exchange_to_budget(lv, 2, np.ones(n), np.ones(n), m.face_adjacency, micro_triangle_count, budget, 1)
     assert np.array_equal(same, lv)
+    # Already over the budget with nothing to trade: unchanged (it raised on an empty cut).
+    over = exchange_to_budget(lv, 2, np.ones(n), np.ones(n), m.face_adjacency,
+                              micro_triangle_count, budget - 1, 1)
+    assert np.array_equal(over, lv)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

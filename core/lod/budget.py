@@ -50,77 +50,97 @@ def exchange_to_budget(levels: np.ndarray, level: int, err_prev: np.ndarray, err
     """
     lv = np.asarray(levels, dtype=np.int64).copy()
     adj = np.asarray(face_adjacency)
+    e0, e1 = np.asarray(err_prev, float), np.asarray(err_now, float)
+    up_val = e1 * np.clip(relative_gain(e0, e1), 0, None)
+    down_val = np.clip(e0 - e1, 0, None)
+    ups, downs = _candidates(lv, level, adj, up_val, down_val, min_level)
+    trade = _Trade(adj, len(lv), budget - cost(lv), 3 * 4 ** level, 3 * 4 ** (level - 1))
+    trade.pair(ups, downs, up_val, down_val)
+    new = lv.copy()
+    new[trade.downs] = level - 1
+    new[trade.ups] = level + 1
+    new = balance_levels_adjacency(adj, new)
+    if cost(new) > budget:           # balancing raised some roll-backs: cut the weakest ups
+        new = _cut_ups(new, trade.ups, level, adj, cost, budget)
+        if cost(new) > budget:
+            return lv
+    return new
+
+
+def _candidates(lv, level, adj, up_val, down_val, min_level):
+    """Faces at ``level`` that may go up (no neighbour below it; best first) and that may go
+    down (no neighbour above it; least useful first)."""
     ok = adj >= 0
     at = lv == level
-    e0, e1 = np.asarray(err_prev, float), np.asarray(err_now, float)
-    gain = relative_gain(e0, e1)
-    up_val = e1 * np.clip(gain, 0, None)
-    down_val = np.clip(e0 - e1, 0, None)
     nb_lo = np.where(ok, lv[np.maximum(adj, 0)], 99).min(axis=1)
     nb_hi = np.where(ok, lv[np.maximum(adj, 0)], -1).max(axis=1)
     ups = np.flatnonzero(at & (nb_lo >= level) & (up_val > 0))
     ups = ups[np.argsort(-up_val[ups], kind="stable")]
     downs = np.flatnonzero(at & (nb_hi <= level)) if level - 1 >= min_level else np.array([], int)
-    downs = downs[np.argsort(down_val[downs], kind="stable")]
-    c_up = 3 * 4 ** level
-    c_down = 3 * 4 ** (level - 1)
-    slack = budget - cost(lv)
-    taken_up, taken_down = [], []
-    # state: 0 free, 1 going up, -1 going down; an up may not touch a down across an edge.
-    state = np.zeros(len(lv), np.int64)
+    return ups, downs[np.argsort(down_val[downs], kind="stable")]
 
-    def touches(f, kind):
-        a = adj[f]
-        a = a[a >= 0]
-        return bool((state[a] == kind).any())
 
-    j = 0
-    for f in ups:
-        if state[f] != 0 or touches(f, -1):
-            continue
-        if slack >= c_up:
-            taken_up.append(f)
-            state[f] = 1
-            slack -= c_up
-            continue
-        need = int(np.ceil((c_up - slack) / c_down))
-        cand = []
-        k = j
-        while len(cand) < need and k < len(downs):
-            g = downs[k]
-            k += 1
-            if g == f or state[g] != 0 or touches(g, 1) or g in adj[f]:
+class _Trade:
+    """The greedy pairing of ups with the roll-backs that pay for them: ``state`` per face
+    (0 free, 1 going up, -1 going down; an up may not touch a down across an edge), the
+    budget's ``slack`` and the faces taken."""
+
+    def __init__(self, adj, n_faces, slack, c_up, c_down):
+        self.adj, self.slack, self.c_up, self.c_down = adj, slack, c_up, c_down
+        self.state = np.zeros(n_faces, np.int64)
+        self.ups: list[int] = []
+        self.downs: list[int] = []
+
+    def touches(self, f, kind) -> bool:
+        a = self.adj[f]
+        return bool((self.state[a[a >= 0]] == kind).any())
+
+    def pair(self, ups, downs, up_val, down_val) -> None:
+        j = 0
+        for f in ups:
+            if self.state[f] != 0 or self.touches(f, -1):
                 continue
-            cand.append(g)
-        if len(cand) < need or down_val[cand].sum() >= up_val[f]:
-            break
-        taken_up.append(f)
-        state[f] = 1
-        taken_down += cand
-        state[cand] = -1
-        slack += need * c_down - c_up
-        j = k
-    new = lv.copy()
-    new[taken_down] = level - 1
-    new[taken_up] = level + 1
-    new = balance_levels_adjacency(adj, new)
-    if cost(new) > budget:           # balancing raised some roll-backs: cut the weakest ups
-        order = np.array(taken_up)[::-1]
-        lo, hi = 0, len(order)
-        while lo < hi:
-            mid = (lo + hi) // 2
-            trial = new.copy()
-            trial[order[:mid]] = level
-            trial = balance_levels_adjacency(adj, trial)
-            if cost(trial) <= budget:
-                hi = mid
-            else:
-                lo = mid + 1
-        new[order[:lo]] = level
-        new = balance_levels_adjacency(adj, new)
-        if cost(new) > budget:
-            return lv
-    return new
+            if self.slack >= self.c_up:
+                self._take([f], [])
+                continue
+            need = int(np.ceil((self.c_up - self.slack) / self.c_down))
+            cand, k = [], j
+            while len(cand) < need and k < len(downs):
+                g = downs[k]
+                k += 1
+                if g == f or self.state[g] != 0 or self.touches(g, 1) or g in self.adj[f]:
+                    continue
+                cand.append(g)
+            if len(cand) < need or down_val[cand].sum() >= up_val[f]:
+                break
+            self._take([f], cand)
+            j = k
+
+    def _take(self, ups, downs) -> None:
+        self.ups += ups
+        self.downs += downs
+        self.state[ups] = 1
+        self.state[downs] = -1
+        self.slack += len(downs) * self.c_down - len(ups) * self.c_up
+
+
+def _cut_ups(new, taken_up, level, adj, cost, budget):
+    """``new`` with the fewest of the last-taken ups set back to ``level`` (binary search)
+    so that, balanced, it fits the budget."""
+    order = np.array(taken_up, dtype=np.int64)[::-1]
+    lo, hi = 0, len(order)
+    while lo < hi:
+        mid = (lo + hi) // 2
+        trial = new.copy()
+        trial[order[:mid]] = level
+        trial = balance_levels_adjacency(adj, trial)
+        if cost(trial) <= budget:
+            hi = mid
+        else:
+            lo = mid + 1
+    new = new.copy()
+    new[order[:lo]] = level
+    return balance_levels_adjacency(adj, new)
 
 
 def roll_back_to_budget(levels: np.ndarray, gains_by_level: dict[int, np.ndarray],
