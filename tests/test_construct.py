@@ -3,6 +3,7 @@ the surface when subdividing, cancels within one iteration, is reproducible."""
 import numpy as np
 import pytest
 
+from core import primitives
 from core.construct import (ConstructCancelled, ConstructError, construct, staged_baseline)
 from core.mesh import TriMesh
 from core.overrides import apply_overrides
@@ -488,3 +489,15 @@ def test_the_base_moves_only_where_it_helps(growth, monkeypatch):
     assert note["shading_error_after"] < note["shading_error_before"]
     moved = np.abs(out.base.vertices - base.vertices).max()
     assert bool(moved > 0) is (growth > 0)
+
+
+def test_the_base_phase_reports_time_left():
+    """Building the base reports its progress with the time left at the pace so far."""
+    from core.construct.frame import prepare_base
+    v, f = primitives.noisy_sphere(20000, amplitude=0.03, seed=1)
+    seen = []
+    base, report, _ = prepare_base(TriMesh(v, f), None, preset("default"), progress=seen.append)
+    assert report["faces"] == base.n_faces and seen and {p.phase for p in seen} == {"base"}
+    etas = [p.eta_s for p in seen if p.iteration > 1]
+    assert etas and all(np.isfinite(e) and e >= 0 for e in etas)
+    assert len(etas) >= 2 and etas[-1] < etas[0]

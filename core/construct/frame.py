@@ -2,6 +2,7 @@
 the result taken back to the caller's frame."""
 from __future__ import annotations
 
+import time
 from typing import Callable
 
 import numpy as np
@@ -126,9 +127,15 @@ def prepare_base(reference: TriMesh, base: TriMesh | None, s: ConstructSettings,
     if base is not None:
         return base, None, differences(topology(reference), topology(base))
 
+    t0 = time.perf_counter()
+
     def report(fraction: float) -> None:
+        # Time left at the pace so far, to the target face count: an upper bound where the
+        # error bound stops the decimation first.
         if progress is not None:
-            progress(Progress("base", int(100 * fraction), 100, 0.0, float("nan"), 0.0))
+            el = time.perf_counter() - t0
+            eta = el * (1 - fraction) / fraction if fraction > 0.01 else float("nan")
+            progress(Progress("base", int(100 * fraction), 100, 0.0, float("nan"), eta))
 
     try:
         built = base_for(reference, s, report, should_stop)
