@@ -63,8 +63,13 @@ def test_short_run_beats_staged_baseline(scene):
     assert r.metrics["estimate"]["seconds"] > 0 and r.metrics["peak_memory_bytes"] > 2 ** 24
     assert r.metrics["cracks"] == 0 and b.metrics["cracks"] == 0
     assert (r.micromesh.levels == 2).all()
-    assert len(seen) == 61 and seen[-1].phase == "done"
+    assert [p.phase for p in seen].count("optimize") == 60 and seen[-1].phase == "done"
     assert all(p.iteration <= p.total_iterations for p in seen)
+    # After the optimiser, one report as each later phase begins, with the time left.
+    finish = [p for p in seen if p.phase not in ("optimize", "done")]
+    assert [p.phase for p in finish] == ["fit", "residual_lod", "base_fit", "bounds", "metrics"]
+    assert all(np.isfinite(p.eta_s) and p.eta_s >= 0 for p in finish)
+    assert [p.iteration for p in finish] == [1, 2, 3, 4, 5]
     # Result is in the caller's frame: near the radius-2 sphere around (1, 1, 1).
     rad = np.linalg.norm(r.micromesh.micro_vertex_positions() - 1.0, axis=1)
     assert 1.7 < rad.min() and rad.max() < 2.3

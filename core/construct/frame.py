@@ -137,6 +137,7 @@ def prepare_base(reference: TriMesh, base: TriMesh | None, s: ConstructSettings,
             eta = el * (1 - fraction) / fraction if fraction > 0.01 else float("nan")
             progress(Progress("base", int(100 * fraction), 100, 0.0, float("nan"), eta))
 
+    report(0.0)           # before the welding and the quadrics: minutes on 2M faces
     try:
         built = base_for(reference, s, report, should_stop)
     except DecimateCancelled:

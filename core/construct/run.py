@@ -130,6 +130,8 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     rng = np.random.default_rng(s.seed)
     t_setup = time.perf_counter()
     run = _setup(reference, base, cameras, s, dev, should_stop, fixed)
+    run.progress = progress
+    run.finish_estimate_s = guess.phases["fit"] + guess.phases["metrics"]
     if cameras is not None:
         warnings += check_views(run.scene.ref, run.scene.cams, dev)
     run.timer.times["setup"] = time.perf_counter() - t_setup

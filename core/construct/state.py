@@ -1,6 +1,7 @@
 """The explicit state of one construction: what every phase reads and updates."""
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -12,7 +13,10 @@ from ..mesh import Normalization, TriMesh
 from ..metrics import PhaseTimer, storage_bytes
 from ..settings import ConstructSettings
 from .scene import Scene
-from .types import ConstructCancelled
+from .types import ConstructCancelled, Progress
+
+
+FINISH_STEPS = 5
 
 
 def budget_cost(s: ConstructSettings, base: TriMesh, reference_faces: int):
@@ -34,7 +38,9 @@ class RunState:
     ``level``: the level the schedule has reached; ``gains``: per level, the per-face
     relative gain that level brought; ``last_errors``: the per-face image errors measured at
     the last subdivision; ``fixed``: the artist's levels (then no schedule, no LOD);
-    ``notes``: what the run decided on the way (e.g. ``residual_lod``), for the metrics.
+    ``notes``: what the run decided on the way (e.g. ``residual_lod``), for the metrics;
+    ``progress`` and ``finish_estimate_s`` (the estimate's seconds for the fit and the metrics)
+    serve :meth:`announce`.
     """
 
     s: ConstructSettings
@@ -55,6 +61,9 @@ class RunState:
     gains: dict = field(default_factory=dict)
     last_errors: np.ndarray | None = None
     notes: dict = field(default_factory=dict)
+    progress: Callable[[Progress], None] | None = None
+    finish_estimate_s: float = 0.0
+    _finish_start: float | None = None
 
     def __post_init__(self) -> None:
         self.cost, self.budget = budget_cost(self.s, self.base, self.reference_faces)
@@ -67,6 +76,18 @@ class RunState:
     def check_stop(self) -> None:
         if self.should_stop():
             raise ConstructCancelled("construction cancelled")
+
+    def announce(self, phase: str, step: int) -> None:
+        """Progress of the phases after the optimiser, one report as each begins (``step`` of
+        ``FINISH_STEPS``: fit, residual levels, base round, bounds, metrics), with the time
+        left: the estimate for them less the time they have taken so far."""
+        if self.progress is None:
+            return
+        now = time.perf_counter()
+        if self._finish_start is None:
+            self._finish_start = now
+        eta = max(0.0, self.finish_estimate_s - (now - self._finish_start))
+        self.progress(Progress(phase, step, FINISH_STEPS, 0.0, float("nan"), eta))
 
     def event(self, **entry) -> None:
         self.history["events"].append(entry)
