@@ -80,13 +80,15 @@ class RunState:
     def announce(self, phase: str, step: int) -> None:
         """Progress of the phases after the optimiser, one report as each begins (``step`` of
         ``FINISH_STEPS``: fit, residual levels, base round, bounds, metrics), with the time
-        left: the estimate for them less the time they have taken so far."""
+        left: the estimate for them less the time they have taken so far (unknown, NaN, once
+        they have taken longer)."""
         if self.progress is None:
             return
         now = time.perf_counter()
         if self._finish_start is None:
             self._finish_start = now
-        eta = max(0.0, self.finish_estimate_s - (now - self._finish_start))
+        eta = self.finish_estimate_s - (now - self._finish_start)
+        eta = eta if eta > 0 else float("nan")
         self.progress(Progress(phase, step, FINISH_STEPS, 0.0, float("nan"), eta))
 
     def event(self, **entry) -> None:
