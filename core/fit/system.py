@@ -17,6 +17,7 @@ from ..barycentric import barycentrics
 from ..closest import ClosestPointIndex
 from ..laplacian import uniform_laplacian
 from ..micromesh import MicroMesh
+from .triangle_sums import triangle_sums
 
 
 def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, slopes: float,
@@ -25,16 +26,16 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, s
                      ) -> tuple[sp.csr_matrix, np.ndarray]:
     """(M, b) of one fit round: the samples matched to their closest points on the
     micro-surface of displacements ``d`` (and base vertices moved by ``offsets`` (nb, 3)),
-    then the weighted least-squares system, summed over ``chunk`` samples at a time (the rows
-    of all samples at once took 6 KB per sample at the peak).
+    then the weighted least-squares system.
 
     Unknowns: the displacements (n,); with ``base_stiffness`` > 0 also increments of the base
     offsets (3 nb, x then y then z), held by ``base_stiffness`` · (weight per base vertex) ·
     |offsets|². M is (n, n) or (n + 3 nb, n + 3 nb).
 
-    Over the displacements alone the system is summed per micro-triangle
-    (``_displacement_system``); with the base, or ``by_rows`` (the general way, which the
-    tests and ``bench/fit_bench.py`` compare it with), from the rows themselves.
+    Over the displacements alone the system is summed per micro-triangle in one compiled
+    pass (:mod:`.triangle_sums`); with the base, or ``by_rows`` (the general way, which the
+    tests and ``bench/fit_bench.py`` compare it with), from the rows themselves, ``chunk``
+    samples at a time (the rows of all samples at once took 6 KB per sample at the peak).
     """
     W = mm.topology.interp.tocsr()
     n, nb = mm.n_vertices, mm.base.n_vertices
@@ -51,8 +52,7 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, s
         M, b = _row_system(corners, B, pts, normals, weights, P, D, W if joint else None,
                            n + 3 * nb if joint else n, slopes, chunk)
     else:
-        M, b = _displacement_system(corners, B, pts, normals, weights, tri, T, P, D, slopes,
-                                    chunk)
+        M, b = _displacement_system(corners, B, pts, normals, weights, tri, T, P, D, slopes)
     # Smoothness of the displacement as a length (|D_k| d_k): the same weight whether the
     # directions are unit or scaled by folded bounds (``core.bounds.baked``).
     LS = uniform_laplacian(n, T) @ sp.diags(np.linalg.norm(D, axis=1))
@@ -65,32 +65,18 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, s
     return (M + sp.block_diag(reg)).tocsr(), b + np.concatenate(prior)
 
 
-def _displacement_system(corners, B, pts, normals, weights, tri, T, P, D, slopes, chunk):
-    """(M, b) over the displacements alone, summed per micro-triangle: a sample matched to a
-    triangle with corners k (barycentrics B_k, g_k = n·D_k, h_k = n·P_k) adds
-    w g_i g_j (B_i B_j + slopes (3 δ_ij − 1)) to M_ij (its point row and its three slope
-    rows) and w (B_i g_i (n·s − Σ_k B_k h_k) + slopes g_i (Σ_k h_k − 3 h_i)) to b_i. The
-    same system as ``_row_system``'s without base columns, assembled without
-    them: 9 entries per micro-triangle instead of sparse products over 4 rows per sample."""
+def _displacement_system(corners, B, pts, normals, weights, tri, T, P, D, slopes):
+    """(M, b) over the displacements alone, summed per micro-triangle
+    (:func:`triangle_sums`): the same system as ``_row_system``'s without base columns,
+    assembled without the rows: 9 entries per micro-triangle instead of sparse products over
+    4 rows per sample."""
     n, m = len(P), len(T)
     G = np.zeros((m, 3, 3))
     b = np.zeros(n)
-    mask = 3 * np.eye(3) - 1
-    for lo in range(0, len(pts), chunk):
-        part = slice(lo, lo + chunk)
-        c, Bc, nrm, w = corners[part], B[part], normals[part], weights[part]
-        g = np.einsum("sa,ska->sk", nrm, D[c])
-        h = np.einsum("sa,ska->sk", nrm, P[c])
-        point = (nrm * pts[part]).sum(1) - (Bc * h).sum(1)
-        a = Bc * g
-        vals = (a[:, :, None] * a[:, None, :] + slopes * mask * (g[:, :, None] * g[:, None, :]))
-        vals *= w[:, None, None]
-        for i in range(3):
-            for j in range(i, 3):
-                G[:, i, j] += np.bincount(tri[part], weights=vals[:, i, j], minlength=m)
-        rhs = w[:, None] * (a * point[:, None] + slopes * g * (h.sum(1)[:, None] - 3 * h))
-        for i in range(3):
-            b += np.bincount(c[:, i], weights=rhs[:, i], minlength=n)
+    f64 = lambda x: np.ascontiguousarray(x, dtype=np.float64)  # noqa: E731
+    triangle_sums(np.ascontiguousarray(tri, dtype=np.int64),
+                  np.ascontiguousarray(corners, dtype=np.int64), f64(B), f64(pts), f64(normals),
+                  f64(weights), f64(P), f64(D), float(slopes), G, b)
     iu = [(i, j) for i in range(3) for j in range(3)]
     rows = np.concatenate([T[:, i] for i, j in iu])
     cols = np.concatenate([T[:, j] for i, j in iu])

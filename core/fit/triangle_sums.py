@@ -1,0 +1,42 @@
+"""The fit's displacement-only normal equations summed per micro-triangle, compiled: one pass
+over the samples (the numpy form of the same sums took 15 s of a 45 s round at 9.7M samples).
+
+A sample matched to a micro-triangle with corners k (barycentrics B_k, g_k = n·D_k,
+h_k = n·P_k) adds w g_i g_j (B_i B_j + slopes (3 δ_ij − 1)) to the triangle's 3 × 3 block
+(its point row and its three slope rows) and w (B_i g_i (n·s − Σ_k B_k h_k)
++ slopes g_i (Σ_k h_k − 3 h_i)) to b at corner i.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..runtime.jit import kernel
+
+
+@kernel(cache=True)
+def triangle_sums(tri, corners, B, pts, normals, weights, P, D, slopes, G, b):  # pragma: no cover
+    """Add every sample's terms to ``G`` (m, 3, 3), upper triangle of each block, and ``b``
+    (n,). ``tri`` (s,) matched micro-triangles, ``corners`` (s, 3) their vertices, ``B`` (s, 3)
+    barycentrics, ``pts``/``normals`` (s, 3), ``weights`` (s,), ``P``/``D`` (n, 3) the
+    micro-vertices' base positions and directions."""
+    g = np.empty(3)
+    h = np.empty(3)
+    a = np.empty(3)
+    for s in range(tri.shape[0]):
+        t = tri[s]
+        nx, ny, nz = normals[s, 0], normals[s, 1], normals[s, 2]
+        w = weights[s]
+        point = nx * pts[s, 0] + ny * pts[s, 1] + nz * pts[s, 2]
+        hs = 0.0
+        for k in range(3):
+            c = corners[s, k]
+            g[k] = nx * D[c, 0] + ny * D[c, 1] + nz * D[c, 2]
+            h[k] = nx * P[c, 0] + ny * P[c, 1] + nz * P[c, 2]
+            a[k] = B[s, k] * g[k]
+            point -= B[s, k] * h[k]
+            hs += h[k]
+        for i in range(3):
+            for j in range(i, 3):
+                mask = 2.0 if i == j else -1.0
+                G[t, i, j] += w * (a[i] * a[j] + slopes * mask * g[i] * g[j])
+            b[corners[s, i]] += w * (a[i] * point + slopes * g[i] * (hs - 3.0 * h[i]))
