@@ -108,8 +108,8 @@ class MICROMESH_PT_construct(_Panel, bpy.types.Panel):
         layout.prop(s, "level")
         layout.prop(s, "overrides")
         if job.active_job() is not None:
-            layout.progress(factor=s.progress, type="BAR",
-                            text=f"{s.phase} {s.iteration}  PSNR {s.psnr:.2f}  {s.eta_s:.0f} s left")
+            # the job's own status: no PSNR or time left where it has none (the base, the fit)
+            layout.progress(factor=s.progress, type="BAR", text=s.status)
             layout.operator("micromesh.cancel_construct", icon="CANCEL")
         else:
             layout.operator("micromesh.construct", icon="PLAY")
