@@ -66,10 +66,9 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, s
 
 
 def _displacement_system(corners, B, pts, normals, weights, tri, T, P, D, slopes):
-    """(M, b) over the displacements alone, summed per micro-triangle
-    (:func:`triangle_sums`): the same system as ``_row_system``'s without base columns,
-    assembled without the rows: 9 entries per micro-triangle instead of sparse products over
-    4 rows per sample."""
+    """(M, b) over the displacements alone: each micro-triangle's 3 x 3 block, summed over its
+    samples by :func:`triangle_sums`, scattered into M (``_row_system`` without ``W`` gives
+    the same system from the rows)."""
     n, m = len(P), len(T)
     G = np.zeros((m, 3, 3))
     b = np.zeros(n)

@@ -1,5 +1,5 @@
 """The fit's displacement-only normal equations summed per micro-triangle, compiled: one pass
-over the samples (the numpy form of the same sums took 15 s of a 45 s round at 9.7M samples).
+over the samples, no per-sample temporaries (``docs/results.md`` has the timings).
 
 A sample matched to a micro-triangle with corners k (barycentrics B_k, g_k = n·D_k,
 h_k = n·P_k) adds w g_i g_j (B_i B_j + slopes (3 δ_ij − 1)) to the triangle's 3 × 3 block
