@@ -508,3 +508,16 @@ def test_the_base_phase_reports_time_left():
     etas = [p.eta_s for p in seen if p.iteration > 1]
     assert etas and all(np.isfinite(e) and e >= 0 for e in etas)
     assert len(etas) >= 2 and etas[-1] < etas[0]
+
+
+def test_the_optimisers_time_left_is_bounded_by_the_time_limit():
+    """Near its time limit the loop ends whatever its iteration count: the time left it
+    reports is bounded by what remains of the limit (large inputs stop at 31-49 of 100)."""
+    import time
+
+    from core.construct.schedule import Schedule
+    limited = Schedule(preset("default", time_limit_s=100.0), time.perf_counter() - 80.0, False)
+    assert limited.bounded_eta(500.0) <= 10.0
+    assert limited.bounded_eta(3.0) == 3.0
+    free = Schedule(preset("default", time_limit_s=0.0), time.perf_counter() - 80.0, False)
+    assert free.bounded_eta(500.0) == 500.0

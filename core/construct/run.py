@@ -174,7 +174,7 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
         if progress is not None:
             el = time.perf_counter() - t_loop
             progress(Progress("optimize", it + 1, n_it, loss, float(p),
-                              el / it_done * (n_it - it_done)))
+                              schedule.bounded_eta(el / it_done * (n_it - it_done))))
     run.check_stop()
     result = finalise(run, params, reference, base, t_start, it_done, schedule.stopped_early)
     result.metrics["warnings"] = warnings

@@ -35,6 +35,13 @@ class Schedule:
             self.events[0] = it
         return False
 
+    def bounded_eta(self, eta: float) -> float:
+        """``eta`` (the loop's remaining iterations at its pace so far) bounded by the time
+        limit, near 90 % of which the loop ends once the subdivisions are done."""
+        if self.limit <= 0:
+            return eta
+        return min(eta, max(0.0, 0.9 * self.limit - (time.perf_counter() - self.t_start)))
+
     def events_due(self, it: int) -> int:
         """How many subdivision events fall due at ``it`` (removed from the list)."""
         n = 0
