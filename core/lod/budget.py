@@ -6,7 +6,7 @@ from typing import Callable
 
 import numpy as np
 
-from .counts import balance_levels_adjacency
+from .counts import balance_levels_adjacency, neighbour_levels
 from .criteria import relative_gain
 
 
@@ -70,10 +70,9 @@ def exchange_to_budget(levels: np.ndarray, level: int, err_prev: np.ndarray, err
 def _candidates(lv, level, adj, up_val, down_val, min_level):
     """Faces at ``level`` that may go up (no neighbour below it; best first) and that may go
     down (no neighbour above it; least useful first)."""
-    ok = adj >= 0
     at = lv == level
-    nb_lo = np.where(ok, lv[np.maximum(adj, 0)], 99).min(axis=1)
-    nb_hi = np.where(ok, lv[np.maximum(adj, 0)], -1).max(axis=1)
+    nb = neighbour_levels(lv, adj)
+    nb_lo, nb_hi = nb.min(axis=1), nb.max(axis=1)
     ups = np.flatnonzero(at & (nb_lo >= level) & (up_val > 0))
     ups = ups[np.argsort(-up_val[ups], kind="stable")]
     downs = np.flatnonzero(at & (nb_hi <= level)) if level - 1 >= min_level else np.array([], int)
@@ -149,13 +148,11 @@ def roll_back_to_budget(levels: np.ndarray, gains_by_level: dict[int, np.ndarray
     """Lower the least useful faces (smallest gain of their level) until ``cost ≤ budget``,
     only where the ±1 rule allows (no edge neighbour above the face's level)."""
     lv = np.asarray(levels, dtype=np.int64).copy()
-    adj = np.asarray(face_adjacency)
-    ok = adj >= 0
     while budget > 0 and cost(lv) > budget:
         top = lv.max()
         if top <= min_level:
             break
-        nb_hi = np.where(ok, lv[np.maximum(adj, 0)], -10).max(axis=1)
+        nb_hi = neighbour_levels(lv, face_adjacency).max(axis=1)
         cand = np.flatnonzero((lv == top) & (nb_hi <= top))
         if cand.size == 0:
             break

@@ -29,20 +29,23 @@ def effective_micro_triangles(levels: np.ndarray, face_adjacency: np.ndarray) ->
     along each edge whose neighbour is one level coarser (the edge decimation that keeps the
     surface crack-free). ``face_adjacency``: (F, 3) neighbour across each edge, -1 none."""
     lv = np.asarray(levels, dtype=np.int64)
-    adj = np.asarray(face_adjacency)
-    nb = np.where(adj >= 0, lv[np.maximum(adj, 0)], lv[:, None])
+    nb = neighbour_levels(lv, face_adjacency)
     coarser = (nb == lv[:, None] - 1).sum(axis=1)
     return int(np.sum(4 ** lv) - np.sum(coarser * (1 << np.maximum(lv - 1, 0))))
 
 
+def neighbour_levels(levels: np.ndarray, face_adjacency: np.ndarray) -> np.ndarray:
+    """(F, 3): the level across each edge of each face, its own level across a boundary."""
+    lv = np.asarray(levels, dtype=np.int64)
+    adj = np.asarray(face_adjacency)
+    return np.where(adj >= 0, lv[np.maximum(adj, 0)], lv[:, None])
+
+
 def balance_levels_adjacency(face_adjacency: np.ndarray, levels: np.ndarray) -> np.ndarray:
     """Raise the lower side until faces across manifold edges differ by at most one level."""
-    adj = np.asarray(face_adjacency)
     lv = np.asarray(levels, dtype=np.int64).copy()
-    ok = adj >= 0
     while True:
-        nb = np.where(ok, lv[np.maximum(adj, 0)], -10).max(axis=1)
-        new = np.maximum(lv, nb - 1)
+        new = np.maximum(lv, neighbour_levels(lv, face_adjacency).max(axis=1) - 1)
         if np.array_equal(new, lv):
             return lv
         lv = new
