@@ -385,7 +385,7 @@ def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, 
     run = SimpleNamespace(s=preset("default"), base=base, cost=cost, budget=cost(levels),
                           fixed=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
                           notes={}, check_stop=lambda: None,
-                          announce=lambda phase, step: None)
+                          announce=lambda phase: None)
     z = base.vertices[base.faces].mean(1)[:, 2]
     if hot_cap:       # the exchange as it should go: up where the detail is
         up, down = z > 0.5, z < -0.5
@@ -488,7 +488,7 @@ def test_the_base_moves_only_where_it_helps(growth, monkeypatch):
     run = SimpleNamespace(s=preset("default", residual_lod=0.0), base=base, cost=None, budget=0,
                           fixed=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
                           notes={}, check_stop=lambda: None,
-                          announce=lambda phase, step: None)
+                          announce=lambda phase: None)
     monkeypatch.setattr(fin, "_SHELL_GROWTH", growth)
     out, _ = fin.fitted(run, mm)
     note = run.notes["base_fit"]

@@ -35,12 +35,12 @@ def finalise(run: RunState, params: Parameters, reference: TriMesh, base: TriMes
     samples = None
     if run.s.final_fit:
         run.check_stop()
-        run.announce("fit", 1)
+        run.announce("fit")
         mm, samples = fitted(run, mm)
     bounds = None
     if run.s.fold_bounds and run.fixed is None:  # what a file holds (not: a frozen base)
         run.check_stop()
-        run.announce("bounds", 4)
+        run.announce("bounds")
         mm, bounds = folded(run, mm, samples), unit_bounds(mm.base.n_vertices)
     with run.timer.phase("finalize"):
         bounds = tight_bounds(mm) if bounds is None else bounds
@@ -48,7 +48,7 @@ def finalise(run: RunState, params: Parameters, reference: TriMesh, base: TriMes
     construct_time = time.perf_counter() - t_start
     metrics: dict = {}
     if run.s.compute_metrics:
-        run.announce("metrics", 5)
+        run.announce("metrics")
         with run.timer.phase("metrics"):
             metrics = evaluate(mm, run.scene.ref, run.s, bounds, run.device)
     metrics.update(time_s=construct_time, iterations=iterations, stopped_early=stopped_early,
@@ -114,11 +114,11 @@ def fitted(run: RunState, mm: MicroMesh) -> tuple[MicroMesh, tuple]:
         mm = _fit(run, mm, samples)
     if run.s.residual_lod > 0 and run.fixed is None and run.cost is not None:
         run.check_stop()
-        run.announce("residual_lod", 2)
+        run.announce("residual_lod")
         mm, samples = _exchanged(run, mm, samples)
     if run.s.fit_base_stiffness > 0 and run.fixed is None:
         run.check_stop()
-        run.announce("base_fit", 3)
+        run.announce("base_fit")
         mm = _base_moved(run, mm, samples)
     return mm, samples
 

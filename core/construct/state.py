@@ -16,7 +16,8 @@ from .scene import Scene
 from .types import ConstructCancelled, Progress
 
 
-FINISH_STEPS = 5
+# The phases after the optimiser, in order (what :meth:`RunState.announce` counts).
+FINISH_PHASES = ("fit", "residual_lod", "base_fit", "bounds", "metrics")
 
 
 def budget_cost(s: ConstructSettings, base: TriMesh, reference_faces: int):
@@ -77,11 +78,11 @@ class RunState:
         if self.should_stop():
             raise ConstructCancelled("construction cancelled")
 
-    def announce(self, phase: str, step: int) -> None:
-        """Progress of the phases after the optimiser, one report as each begins (``step`` of
-        ``FINISH_STEPS``: fit, residual levels, base round, bounds, metrics), with the time
-        left: the estimate for them less the time they have taken so far (unknown, NaN, once
-        they have taken longer)."""
+    def announce(self, phase: str) -> None:
+        """Progress of the phases after the optimiser, one report as each of
+        ``FINISH_PHASES`` begins (its place among them as the iteration), with the time left:
+        the estimate for them less the time they have taken so far (unknown, NaN, once they
+        have taken longer)."""
         if self.progress is None:
             return
         now = time.perf_counter()
@@ -89,7 +90,8 @@ class RunState:
             self._finish_start = now
         eta = self.finish_estimate_s - (now - self._finish_start)
         eta = eta if eta > 0 else float("nan")
-        self.progress(Progress(phase, step, FINISH_STEPS, 0.0, float("nan"), eta))
+        self.progress(Progress(phase, FINISH_PHASES.index(phase) + 1, len(FINISH_PHASES), 0.0,
+                               float("nan"), eta))
 
     def event(self, **entry) -> None:
         self.history["events"].append(entry)
