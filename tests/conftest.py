@@ -6,12 +6,19 @@ import sys
 from pathlib import Path
 
 import pytest
+import torch
 
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 MESHES = Path(os.environ.get("MICROMESH_MESHES", ROOT.parent / "shared" / "meshes"))
+
+
+CUDA = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
+"""Marks a test that runs only where torch sees a CUDA device (never in CI)."""
+DEVICES = ["cpu", pytest.param("cuda", marks=[CUDA, pytest.mark.gpu])]
+"""``@pytest.mark.parametrize("device", DEVICES)``: the CPU everywhere, CUDA where there is one."""
 
 
 def mesh_path(name: str) -> Path:

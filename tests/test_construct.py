@@ -8,6 +8,7 @@ from core.construct import (ConstructCancelled, ConstructError, construct, stage
 from core.mesh import TriMesh
 from core.overrides import apply_overrides
 from core.settings import SettingsError, preset
+from tests.conftest import DEVICES
 
 
 def icosphere(n):
@@ -53,9 +54,10 @@ def small(**kw):
     return preset("fast", **base)
 
 
-def test_short_run_beats_staged_baseline(scene):
+@pytest.mark.parametrize("device", DEVICES)
+def test_short_run_beats_staged_baseline(scene, device):
     ref, base = scene
-    s = small()
+    s = small(device=device)
     b = staged_baseline(ref, base, 2, s)
     seen = []
     r = construct(ref, base, None, s, progress=seen.append)
@@ -189,9 +191,10 @@ def test_cancel_within_one_iteration(scene):
     assert len(seen) == 3
 
 
-def test_reproducible(scene):
+@pytest.mark.parametrize("device", DEVICES)
+def test_reproducible(scene, device):
     ref, base = scene
-    s = small(iterations=12, subdivide_at=(4,), max_level=1, compute_metrics=False)
+    s = small(iterations=12, subdivide_at=(4,), max_level=1, compute_metrics=False, device=device)
     a = construct(ref, base, None, s)
     b = construct(ref, base, None, s)
     assert np.array_equal(a.micromesh.displacements, b.micromesh.displacements)

@@ -146,7 +146,9 @@ def _read_mutated(tmp_path, files: dict, name: str, data: bytes, entry: str) -> 
         f.micromesh()
     except MicromeshFileError:
         pass
-    assert time.perf_counter() - t < 1.0
+    # A guard against a hang or a giant allocation from a corrupted count, not a speed target:
+    # the first read may compile the reader's kernels on a fresh cache.
+    assert time.perf_counter() - t < 10.0
 
 
 @settings(max_examples=60, deadline=None)

@@ -9,7 +9,9 @@ import torch
 
 from core.cameras import Cameras, fibonacci_cameras, look_at, perspective
 from core.render import pixel_error, rasterize, render, render_loss
+from core.render import scatter
 from core.runtime.threads import set_threads
+from tests.conftest import CUDA
 from tests.test_render import icosphere, tensors
 
 BACKENDS = ["numba", "torch"]
@@ -193,7 +195,36 @@ def test_numba_and_torch_backends_agree():
         torch.testing.assert_close(a, b, rtol=1e-9, atol=1e-12)
 
 
-@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
+def test_the_ordered_gather_has_the_gather_gradient():
+    src = torch.randn(7, 3, dtype=torch.float64, requires_grad=True)
+    index = torch.tensor([[0, 3, 3], [6, 0, 0], [3, 3, 3]])
+    assert torch.equal(scatter._Gather.apply(src, index), src[index])
+    assert torch.autograd.gradcheck(lambda x: scatter._Gather.apply(x, index), (src,))
+
+
+@CUDA
+@pytest.mark.gpu
+@pytest.mark.parametrize("kind", ["shaded", "flat"])
+def test_cuda_gradients_are_the_same_on_every_run(kind):
+    """Colliding rows (a vertex shared by many pixels' faces, pixels on several silhouette
+    pairs) are added in a fixed order on CUDA: the same loss and gradient, bit for bit."""
+    v, f = tensors(*icosphere(4, noise=0.03))
+    cams = fibonacci_cameras(8, width=128)
+    v, f = v.cuda(), f.cuda()
+    target = torch.rand((8, 128, 128, 3), generator=torch.Generator().manual_seed(2)).cuda()
+    r = rasterize(v, f, cams)
+    runs = []
+    for _ in range(3):
+        x = v.clone().requires_grad_(True)
+        loss = render_loss(x, f, cams, target, raster=r, kind=kind)
+        loss.backward()
+        runs.append((loss.detach(), x.grad))
+    for loss, grad in runs[1:]:
+        assert torch.equal(loss, runs[0][0]) and torch.equal(grad, runs[0][1])
+
+
+@CUDA
+@pytest.mark.gpu
 def test_cuda_agrees_with_cpu():
     v, f = tensors(*icosphere(3, noise=0.03))
     cams = fibonacci_cameras(4, width=64)

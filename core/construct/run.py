@@ -23,6 +23,7 @@ from ..mesh import TriMesh, unit_sphere_normalization
 from ..micromesh import MicroMesh
 from ..render import warm_up
 from ..settings import ConstructSettings
+from ..runtime.determinism import deterministic
 from ..runtime.machine import available_memory_bytes, peak_resident_bytes
 from ..runtime.threads import set_threads
 from .estimate import check_fits, estimate
@@ -60,11 +61,13 @@ def construct(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
     optimised as usual (reparameterisation, L_sv, rendering loss) within the settings' budget.
 
     Large freed buffers stay in the heap while it runs (``core.runtime.memory``; the policy stays set
-    for the process) and the free heap goes back to the OS when it returns.
+    for the process) and the free heap goes back to the OS when it returns. On CUDA, torch's
+    deterministic algorithms are on while it runs (``core.runtime.determinism``).
     """
     keep_large_allocations()
     try:
-        return _construct(reference, base, cameras, settings, progress, should_stop, levels)
+        with deterministic(torch_device(settings.validate().device)):
+            return _construct(reference, base, cameras, settings, progress, should_stop, levels)
     finally:
         release_memory()
 

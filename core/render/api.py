@@ -10,6 +10,7 @@ import torch
 
 from . import torch_path
 from .geometry import vertex_normals
+from .scatter import gather
 from .topology import face_neighbours
 from .types import Raster, RenderError, camera_mvp, check_backend, check_mesh, check_raster
 
@@ -80,7 +81,7 @@ def interpolate(attr: torch.Tensor, verts: torch.Tensor, faces: torch.Tensor, ca
     if attr.ndim != 2 or len(attr) != len(verts):
         raise RenderError(f"attr must be (N, C) with N = {len(verts)} vertices, got {tuple(attr.shape)}")
     index, face, bary, _ = torch_path.barycentrics_torch(verts, faces, raster.mvp, raster.tri_id)
-    val = (bary.to(attr.dtype)[:, :, None] * attr[faces.long()[face]]).sum(1)
+    val = (bary.to(attr.dtype)[:, :, None] * gather(attr, faces.long()[face])).sum(1)
     nb, height, width = raster.tri_id.shape
     out = torch.zeros((nb * height * width, attr.shape[1]), dtype=attr.dtype, device=attr.device)
     return out.index_put((index,), val).view(nb, height, width, -1)

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import torch
 
+from .scatter import gather, scatter_add
+
 NORMAL_EPS = 1e-20
 """Added to squared lengths before normalising, so that zero vectors give 0, never NaN (small
 enough to be negligible for real faces, large enough that float32 backward cannot overflow)."""
@@ -19,11 +21,11 @@ def normalize(v: torch.Tensor) -> torch.Tensor:
 def vertex_normals(verts: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
     """(N, 3) unit area-weighted vertex normals (sum of the incident faces' cross products)."""
     f = faces.long()
-    v0, v1, v2 = verts[f[:, 0]], verts[f[:, 1]], verts[f[:, 2]]
+    v0, v1, v2 = (gather(verts, f[:, k]) for k in range(3))
     fn = torch.linalg.cross(v1 - v0, v2 - v0)
     vn = torch.zeros_like(verts)
     for k in range(3):
-        vn = vn.index_add(0, f[:, k], fn)
+        vn = scatter_add(vn, f[:, k], fn)
     return normalize(vn)
 
 

@@ -13,12 +13,17 @@ from __future__ import annotations
 import torch
 
 from .geometry import normalize
+from .scatter import gather, scatter_add
 from .sh import shade_normals
 
 _MAX_CANDIDATES = 1 << 21
-"""(pixel, face) candidates expanded at once (memory bound: ~400 bytes of temporaries each)."""
+"""(pixel, face) candidates expanded at once on the CPU (~400 bytes of temporaries each)."""
 _MAX_FACE_VIEWS = 1 << 22
-"""face x view setups held at once; views are processed in groups of at most this many."""
+"""face x view setups held at once on the CPU (~600 bytes each); views go in groups of at most
+this many."""
+_GPU_SHARE = 16
+"""On a GPU each of the two is sized to use at most this fraction of the free memory (fewer,
+larger batches: fewer kernel launches and host syncs), never below the CPU's."""
 _KEY_BACKGROUND = torch.iinfo(torch.int64).max
 
 
@@ -37,8 +42,16 @@ def project(verts: torch.Tensor, mvp: torch.Tensor, width: int, height: int
     return (x / w + 1.0) * (0.5 * width), (1.0 - y / w) * (0.5 * height), w, z
 
 
-def _view_groups(n_views: int, n_faces: int):
-    step = max(1, _MAX_FACE_VIEWS // max(n_faces, 1))
+def _limits(device: torch.device) -> tuple[int, int]:
+    """(candidates, face x view setups) held at once on ``device``."""
+    if device.type != "cuda":
+        return _MAX_CANDIDATES, _MAX_FACE_VIEWS
+    free = torch.cuda.mem_get_info(device)[0] // _GPU_SHARE
+    return max(_MAX_CANDIDATES, free // 400), max(_MAX_FACE_VIEWS, free // 600)
+
+
+def _view_groups(n_views: int, n_faces: int, max_face_views: int = _MAX_FACE_VIEWS):
+    step = max(1, max_face_views // max(n_faces, 1))
     for b0 in range(0, n_views, step):
         yield b0, min(n_views, b0 + step)
 
@@ -96,7 +109,8 @@ def rasterize_torch(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor,
     nb, hw = len(mvp), height * width
     keys = torch.full((nb * hw,), _KEY_BACKGROUND, dtype=torch.int64, device=dev)
     f = faces.long()
-    for g0, g1 in _view_groups(nb if len(f) else 0, len(f)):
+    max_candidates, max_face_views = _limits(dev)
+    for g0, g1 in _view_groups(nb if len(f) else 0, len(f), max_face_views):
         sx, sy, w, z = project(verts, mvp[g0:g1], width, height)
         fpack, ipack, count = _live_faces(f, sx, sy, w, z, width, height)
         del sx, sy, w, z
@@ -105,7 +119,7 @@ def rasterize_torch(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor,
         start, n_live = 0, len(count)
         while start < n_live:
             base = int(first[start])
-            stop = max(int(torch.searchsorted(csum, base + _MAX_CANDIDATES, right=True)), start + 1)
+            stop = max(int(torch.searchsorted(csum, base + max_candidates, right=True)), start + 1)
             rep = torch.repeat_interleave(torch.arange(start, stop, device=dev), count[start:stop])
             k = torch.arange(base, base + len(rep), device=dev) - first[rep]
             ip, fp = ipack[rep], fpack[rep]
@@ -151,7 +165,7 @@ def clip_xyw(verts: torch.Tensor, mvp: torch.Tensor, b: torch.Tensor, fv: torch.
              ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Clip x, y, w (P, 3) of the vertices ``fv`` (P, 3) in views ``b`` (P,) (elementwise:
     no per-pixel 4x4 matrices); differentiable w.r.t. verts, in mvp's dtype."""
-    v = verts[fv]  # (P, 3, 3)
+    v = gather(verts, fv)  # (P, 3, 3)
     vx, vy, vz = v[..., 0], v[..., 1], v[..., 2]
 
     def row(r: int) -> torch.Tensor:
@@ -198,10 +212,10 @@ def shade_torch(verts: torch.Tensor, faces: torch.Tensor, vnormals: torch.Tensor
         val = (bary * w).sum(1, keepdim=True)
     elif kind == "flat":
         f = faces.long()[face]
-        v0, v1, v2 = verts[f[:, 0]], verts[f[:, 1]], verts[f[:, 2]]
+        v0, v1, v2 = (gather(verts, f[:, k]) for k in range(3))
         val = shade_normals(normalize(torch.linalg.cross(v1 - v0, v2 - v0)))
     else:
-        n = normalize((bary[:, :, None] * vnormals[faces.long()[face]]).sum(1))
+        n = normalize((bary[:, :, None] * gather(vnormals, faces.long()[face])).sum(1))
         val = shade_normals(n) if kind == "shaded" else n
     out = torch.zeros((nb * height * width, val.shape[1]), dtype=verts.dtype, device=verts.device)
     out = out.index_put((index,), val)
@@ -214,7 +228,7 @@ def face_facing(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor, wid
     plane); same float64 arithmetic as the numba rasteriser."""
     f = faces.long()
     out = torch.empty((len(mvp), len(f)), dtype=torch.int8, device=verts.device)
-    for g0, g1 in _view_groups(len(mvp), len(f)):
+    for g0, g1 in _view_groups(len(mvp), len(f), _limits(verts.device)[1]):
         sx, sy, w, z = project(verts, mvp[g0:g1], width, height)
         x, y = sx[:, f], sy[:, f]
         area = (x[..., 1] - x[..., 0]) * (y[..., 2] - y[..., 0]) - (y[..., 1] - y[..., 0]) * (x[..., 2] - x[..., 0])
@@ -348,5 +362,5 @@ def antialias_torch(color: torch.Tensor, verts: torch.Tensor, faces: torch.Tenso
         alpha = torch.where(to_b, t - 0.5, 0.5 - t)[:, None]
         dst = torch.where(to_b, ib, ia)
         delta = alpha * torch.where(to_b[:, None], ca_ - cb_, cb_ - ca_)
-        out = flat.index_add(0, dst, delta.to(flat.dtype)).view(nb, height, width, nc)
+        out = scatter_add(flat, dst, delta.to(flat.dtype)).view(nb, height, width, nc)
     return out
