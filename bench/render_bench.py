@@ -1,5 +1,6 @@
 """Renderer benchmark: one optimiser iteration (rasterise + shaded render + antialias + L1 loss,
-then backward to the vertices) from 24 views, numba CPU kernels next to the plain-torch path.
+then backward to the vertices) from 24 views, numba CPU kernels next to the plain-torch path;
+on CUDA (``--device cuda``) the torch path with its fused Triton kernels next to without.
 
     python bench/render_bench.py                  # 20k / 200k / 1M triangles at 256² and 512²
     python bench/render_bench.py --quick          # 20k / 200k at 256², fewer repeats
@@ -102,6 +103,12 @@ def run_one(backend: str, device: str, triangles: int, res: int, views: int, rep
     from core.render import rasterize, reference_images, render_loss
 
     keep_large_allocations()  # as core.construct runs the renderer
+    name = backend
+    if backend == "torch-plain":  # the torch path without its fused CUDA kernels
+        from core.render import torch_path
+
+        torch_path.fused_default = lambda device: False
+        backend = "torch"
 
     v, f = first_use_order(*C.noisy_sphere(triangles))
     cams = fibonacci_cameras(views, width=res)
@@ -127,9 +134,11 @@ def run_one(backend: str, device: str, triangles: int, res: int, views: int, rep
     with PeakRSS() as mem:  # a separate run: the sampling thread would steal time from the timed ones
         forward_backward()
     covered = int((rasterize(verts, faces, cams, backend=backend).tri_id >= 0).sum())
-    rec = {"backend": backend, "device": device, "triangles": len(f), "resolution": res,
+    rec = {"backend": name, "device": device, "triangles": len(f), "resolution": res,
            "views": views, "forward_s": fwd, "forward_backward_s": fb, "peak_mb": mem.peak_mb,
            "covered_pixels": covered}
+    if device == "cuda":
+        rec["gpu_peak_mb"] = torch.cuda.max_memory_allocated() / 2 ** 20
     if profile and backend == "numba":
         rec["stages"] = numba_stages(verts, faces, cams, target, repeat)
     return rec
@@ -144,8 +153,11 @@ def main() -> None:
     p.add_argument("--repeat", type=int, default=None, help="timed runs per figure (numba)")
     p.add_argument("--torch-repeat", type=int, default=None,
                    help="timed runs per figure for the slow plain-torch path (default: --repeat)")
-    p.add_argument("--backends", nargs="+", default=["numba", "torch"], choices=["numba", "torch"])
-    p.add_argument("--device", default="cpu", help="cpu or cuda (cuda runs the torch backend only)")
+    p.add_argument("--backends", nargs="+", default=None,
+                   choices=["numba", "torch", "torch-plain"],
+                   help="default: numba torch on the CPU, torch torch-plain on CUDA (torch-plain: "
+                        "the torch path without its fused Triton kernels)")
+    p.add_argument("--device", default="cpu", help="cpu or cuda (cuda runs the torch backends only)")
     p.add_argument("--profile", action="store_true",
                    help="also time each stage of the numba iteration alone (second table)")
     p.add_argument("--child", help=argparse_suppress())
@@ -159,7 +171,7 @@ def main() -> None:
     sizes = a.sizes or ([20_000, 200_000] if a.quick else [20_000, 200_000, 1_000_000])
     res = a.res or ([256] if a.quick else [256, 512])
     repeat = a.repeat or (2 if a.quick else 3)
-    backends = ["torch"] if a.device == "cuda" else a.backends
+    backends = a.backends or (["torch", "torch-plain"] if a.device == "cuda" else ["numba", "torch"])
     records, rows = [], []
     for n in sizes:
         for r in res:
@@ -179,7 +191,7 @@ def main() -> None:
                 row[f"{be} fwd+bwd s"] = rec["forward_backward_s"]
                 row[f"{be} peak MB"] = rec["peak_mb"]
             if len(backends) == 2:
-                row["speed-up fwd+bwd"] = row["torch fwd+bwd s"] / row["numba fwd+bwd s"]
+                row["speed-up fwd+bwd"] = row[f"{backends[1]} fwd+bwd s"] / row[f"{backends[0]} fwd+bwd s"]
             rows.append(row)
             print(f"done {n} @ {r}: " + ", ".join(f"{k} {C._fmt(v)}" for k, v in row.items()),
                   file=sys.stderr, flush=True)

@@ -225,6 +225,37 @@ def test_cuda_gradients_are_the_same_on_every_run(kind):
 
 @CUDA
 @pytest.mark.gpu
+def test_cuda_fused_kernels_agree_with_the_plain_torch_path():
+    """The rasteriser's pixel loop and the antialiasing walk as Triton kernels give the plain
+    torch path's coverage and images (sub-pixel faces: long walks)."""
+    from core.render import torch_path
+    from core.render.topology import face_neighbours
+    from core.render.types import camera_mvp
+
+    if not torch_path.fused_default(torch.device("cuda")):
+        pytest.skip("Triton is not installed")
+    v, f = tensors(*icosphere(6, noise=0.03))          # 82k faces
+    v, f = v.cuda(), f.cuda()
+    for width in (64, 256):
+        cams = fibonacci_cameras(6, width=width)
+        mvp = camera_mvp(cams, v.device)
+        plain = torch_path.rasterize_torch(v, f, mvp, width, width, fused=False)
+        fused = torch_path.rasterize_torch(v, f, mvp, width, width, fused=True)
+        assert (plain[0] == fused[0]).float().mean() >= 0.9999
+        img = render(v, f, cams, kind="shaded", antialias=False)
+        nbr = face_neighbours(f)
+        a = torch_path.antialias_torch(img, v, f, nbr, mvp, plain[0], plain[1], fused=False)
+        b = torch_path.antialias_torch(img, v, f, nbr, mvp, plain[0], plain[1], fused=True)
+        changed = (a != img).any(-1)
+        assert changed.sum() > 100
+        assert ((a - b).abs().amax(-1) > 1e-5).float().mean() < 1e-4
+    from core.render import triton_kernels
+
+    assert triton_kernels.failure is None, triton_kernels.failure
+
+
+@CUDA
+@pytest.mark.gpu
 def test_cuda_agrees_with_cpu():
     v, f = tensors(*icosphere(3, noise=0.03))
     cams = fibonacci_cameras(4, width=64)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import torch
 
 from .geometry import normalize
+from . import triton_kernels
 from .scatter import gather, scatter_add
 from .sh import shade_normals
 
@@ -102,16 +103,26 @@ def _live_faces(f: torch.Tensor, sx, sy, w, z, width: int, height: int):
     return fpack, ipack, count[live].long()
 
 
+def fused_default(device: torch.device) -> bool:
+    """Whether the torch path runs its two loops as fused kernels (``triton_kernels``) on
+    ``device``: on CUDA where Triton is."""
+    return triton_kernels.available(device)
+
+
 def rasterize_torch(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor, width: int,
-                    height: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """(tri_id int32 (B, H, W), depth float32 (B, H, W), +inf background)."""
+                    height: int, fused: bool | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    """(tri_id int32 (B, H, W), depth float32 (B, H, W), +inf background). ``fused``: the
+    per-(view, face) pixel loop as one kernel (default: ``fused_default``)."""
     dev = verts.device
+    fused = fused_default(dev) if fused is None else fused
     nb, hw = len(mvp), height * width
     keys = torch.full((nb * hw,), _KEY_BACKGROUND, dtype=torch.int64, device=dev)
     f = faces.long()
     max_candidates, max_face_views = _limits(dev)
     for g0, g1 in _view_groups(nb if len(f) else 0, len(f), max_face_views):
         sx, sy, w, z = project(verts, mvp[g0:g1], width, height)
+        if fused and triton_kernels.rasterize_keys(keys, f, sx, sy, w, z, g0, width, height):
+            continue
         fpack, ipack, count = _live_faces(f, sx, sy, w, z, width, height)
         del sx, sy, w, z
         csum = torch.cumsum(count, 0)
@@ -271,7 +282,8 @@ MAX_WALK = 64
 WALK_DEPTH_RATIO = 1.01
 
 
-def _walk(vd, f_all, nbr, facing, m64, bi, cur, near_a, walk, fixed, p0, vertical, width, height):
+def _walk(vd, f_all, nbr, facing, m64, bi, cur, near_a, walk, fixed, p0, vertical, width, height,
+          max_walk):
     """Silhouette edge code (face * 3 + edge, -1 for none) of every pair (no gradient).
 
     The walk across sub-pixel faces works on the shrinking set of still-walking pairs (index
@@ -282,7 +294,7 @@ def _walk(vd, f_all, nbr, facing, m64, bi, cur, near_a, walk, fixed, p0, vertica
     e, t, alive = _pick(t_all, (t_all >= 0) & (t_all <= 1), near_a)
     act = torch.nonzero(alive & ok).squeeze(1)
     cur, e, t, steep = cur[act], e[act], t[act], steep[act]
-    for _ in range(MAX_WALK):
+    for _ in range(max_walk):
         if len(act) == 0:
             break
         b = bi[act]
@@ -310,11 +322,13 @@ def _walk(vd, f_all, nbr, facing, m64, bi, cur, near_a, walk, fixed, p0, vertica
 
 def antialias_torch(color: torch.Tensor, verts: torch.Tensor, faces: torch.Tensor,
                     nbr: torch.Tensor, mvp: torch.Tensor, tri_id: torch.Tensor,
-                    depth: torch.Tensor) -> torch.Tensor:
+                    depth: torch.Tensor, fused: bool | None = None) -> torch.Tensor:
     """nvdiffrast-style analytic antialiasing of (B, H, W, C) ``color``; the rule of
     ``antialias.py`` (silhouette edges by facing, one pair direction per edge, the walk across
     sub-pixel faces towards background or a clearly farther surface) in vectorised torch: all
-    pixel pairs of all views at once, the walk stepping all still-walking pairs together."""
+    pixel pairs of all views at once, the walk stepping all still-walking pairs together
+    (``fused``: the walk as one kernel, default ``fused_default``)."""
+    fused = fused_default(verts.device) if fused is None else fused
     nb, height, width, nc = color.shape
     out = color
     dt = verts.dtype
@@ -340,8 +354,11 @@ def antialias_torch(color: torch.Tensor, verts: torch.Tensor, faces: torch.Tenso
         p0 = (ri if vertical else ci).to(torch.float64) + 0.5
         with torch.no_grad():
             cur = torch.where(near_a, fa, fb)
-            code = _walk(vd, f_all, nbr, facing, m64, bi, cur, near_a, walk, fixed, p0, vertical,
-                         width, height)
+            args = (vd, f_all, nbr, facing, m64, bi, cur, near_a, walk, fixed, p0, vertical,
+                    width, height, MAX_WALK)
+            code = triton_kernels.walk_codes(*args) if fused else None
+            if code is None:
+                code = _walk(*args)
         valid = torch.nonzero(code >= 0).squeeze(1)
         if len(valid) == 0:
             continue
