@@ -228,7 +228,7 @@ def test_cuda_gradients_are_the_same_on_every_run(kind):
 def test_cuda_fused_kernels_agree_with_the_plain_torch_path():
     """The rasteriser's pixel loop and the antialiasing walk as Triton kernels give the plain
     torch path's coverage and images (sub-pixel faces: long walks)."""
-    from core.render import torch_path
+    from core.render import torch_antialias, torch_path
     from core.render.topology import face_neighbours
     from core.render.types import camera_mvp
 
@@ -244,8 +244,8 @@ def test_cuda_fused_kernels_agree_with_the_plain_torch_path():
         assert (plain[0] == fused[0]).float().mean() >= 0.9999
         img = render(v, f, cams, kind="shaded", antialias=False)
         nbr = face_neighbours(f)
-        a = torch_path.antialias_torch(img, v, f, nbr, mvp, plain[0], plain[1], fused=False)
-        b = torch_path.antialias_torch(img, v, f, nbr, mvp, plain[0], plain[1], fused=True)
+        a = torch_antialias.antialias_torch(img, v, f, nbr, mvp, plain[0], plain[1], fused=False)
+        b = torch_antialias.antialias_torch(img, v, f, nbr, mvp, plain[0], plain[1], fused=True)
         changed = (a != img).any(-1)
         assert changed.sum() > 100
         assert ((a - b).abs().amax(-1) > 1e-5).float().mean() < 1e-4

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import torch
 
-from . import torch_path
+from . import torch_antialias, torch_path
 from .geometry import vertex_normals
 from .scatter import gather
 from .topology import face_neighbours
@@ -65,7 +65,7 @@ def render(verts: torch.Tensor, faces: torch.Tensor, cams, *, kind: str = "shade
     vn = vertex_normals(verts, faces) if kind in ("shaded", "normal") else None
     img = torch_path.shade_torch(verts, faces, vn, raster.mvp, raster.tri_id, kind)
     if antialias:
-        img = torch_path.antialias_torch(img, verts, faces, face_neighbours(faces), raster.mvp,
+        img = torch_antialias.antialias_torch(img, verts, faces, face_neighbours(faces), raster.mvp,
                                          raster.tri_id, raster.depth)
     return img
 

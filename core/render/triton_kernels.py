@@ -1,11 +1,11 @@
-"""Fused CUDA kernels (Triton) for the two loops of the torch path that plain torch runs as
-thousands of small kernels: the rasteriser's per-(view, face) pixel loop and the antialiasing
-walk across sub-pixel faces. Same rules and float64 arithmetic as ``torch_path`` (which stays
-the reference: tests compare the two); only their own atomics touch shared memory, and an
-atomic minimum is order-independent.
+"""Fused CUDA kernels (Triton) for the two loops that plain torch runs as thousands of small
+kernels: the rasteriser's per-(view, face) pixel loop (here) and the antialiasing walk across
+sub-pixel faces (``triton_walk``). Same rules and float64 arithmetic as ``torch_path`` and
+``torch_antialias``, which stay the reference (tests compare them on a GPU) and the fallback:
+where Triton is not installed, or a kernel fails to compile or launch, ``available()`` is
+False and the plain path runs. The only atomics are the z-buffer's minimum (order-independent).
 
-Imported only where Triton is (``available()``); every function takes and returns torch
-tensors on one CUDA device.
+Every function takes torch tensors on one CUDA device.
 """
 from __future__ import annotations
 
@@ -18,9 +18,9 @@ try:
     import triton
     import triton.language as tl
 except ImportError:  # pragma: no cover - CPU-only installs
-    triton = None
+    triton = tl = None
 
-_BLOCK = 128
+BLOCK_SIZE = 128
 failure: str | None = None
 """Why a kernel failed to compile or launch (then none is used again in this process)."""
 
@@ -30,7 +30,7 @@ def available(device: torch.device) -> bool:
     return triton is not None and device.type == "cuda" and failure is None
 
 
-def _guarded(fn):
+def guarded(fn):
     """A kernel wrapper that returns None instead of raising where Triton fails (a compiler or
     driver it cannot use): the caller then runs the plain torch path, with a warning once."""
     @functools.wraps(fn)
@@ -139,7 +139,7 @@ if triton is not None:
             k += 1
 
 
-@_guarded
+@guarded
 def rasterize_keys(keys: torch.Tensor, f: torch.Tensor, sx, sy, w, z, view0: int, width: int,
                    height: int) -> bool:
     """Fold the (float32 depth bits << 32 | face) keys of every covered pixel of the views
@@ -149,137 +149,9 @@ def rasterize_keys(keys: torch.Tensor, f: torch.Tensor, sx, sy, w, z, view0: int
     items = g * len(f)
     if items == 0:
         return True
-    grid = (triton.cdiv(items, _BLOCK),)
+    grid = (triton.cdiv(items, BLOCK_SIZE),)
     _raster_kernel[grid](f.contiguous(), sx.contiguous(), sy.contiguous(), w.contiguous(),
                          z.contiguous(), keys, items, len(f), n, view0, width, height,
-                         BLOCK=_BLOCK)
+                         BLOCK=BLOCK_SIZE)
     return True
 
-
-if triton is not None:
-    @triton.jit
-    def _screen(vd_ptr, m_ptr, b, vi, width, height, mask):
-        """Screen x, y of vertex ``vi`` in view ``b`` (``torch_path._face_screen``) and w > 0."""
-        vx = tl.load(vd_ptr + vi * 3, mask=mask, other=0.0)
-        vy = tl.load(vd_ptr + vi * 3 + 1, mask=mask, other=0.0)
-        vz = tl.load(vd_ptr + vi * 3 + 2, mask=mask, other=0.0)
-        mb = m_ptr + b * 16
-        x = ((tl.load(mb, mask=mask, other=0.0) * vx + tl.load(mb + 1, mask=mask, other=0.0) * vy)
-             + tl.load(mb + 2, mask=mask, other=0.0) * vz) + tl.load(mb + 3, mask=mask, other=0.0)
-        y = ((tl.load(mb + 4, mask=mask, other=0.0) * vx + tl.load(mb + 5, mask=mask, other=0.0) * vy)
-             + tl.load(mb + 6, mask=mask, other=0.0) * vz) + tl.load(mb + 7, mask=mask, other=0.0)
-        w = ((tl.load(mb + 12, mask=mask, other=0.0) * vx + tl.load(mb + 13, mask=mask, other=0.0) * vy)
-             + tl.load(mb + 14, mask=mask, other=0.0) * vz) + tl.load(mb + 15, mask=mask, other=1.0)
-        ws = tl.where(w > 0, w, 1.0)
-        return (x / ws + 1.0) * (0.5 * width), (1.0 - y / ws) * (0.5 * height), w > 0
-
-    @triton.jit
-    def _crossing(sxa, sya, sxb, syb, fx, p0, VERTICAL: tl.constexpr):
-        """Where edge (a, b) crosses the pair's segment (NaN: no straddle), and whether it is
-        steep enough for the pair direction (``torch_path._crossings``)."""
-        if VERTICAL:
-            aa, ab, ca, cb = sya, syb, sxa, sxb
-        else:
-            aa, ab, ca, cb = sxa, sxb, sya, syb
-        straddle = ((ca <= fx) & (fx < cb)) | ((cb <= fx) & (fx < ca))
-        den = tl.where(straddle, cb - ca, 1.0)
-        t = aa + (fx - ca) * (ab - aa) / den - p0
-        steep = tl.abs(cb - ca) - tl.abs(ab - aa)
-        if VERTICAL:
-            ok = steep > 0
-        else:
-            ok = steep >= 0
-        return tl.where(straddle, t, float("nan")), ok
-
-    @triton.jit
-    def _face_crossings(vd_ptr, f_ptr, m_ptr, b, face, fx, p0, width, height, mask,
-                        VERTICAL: tl.constexpr):
-        i0 = tl.load(f_ptr + face * 3, mask=mask, other=0)
-        i1 = tl.load(f_ptr + face * 3 + 1, mask=mask, other=0)
-        i2 = tl.load(f_ptr + face * 3 + 2, mask=mask, other=0)
-        x0, y0, k0 = _screen(vd_ptr, m_ptr, b, i0, width, height, mask)
-        x1, y1, k1 = _screen(vd_ptr, m_ptr, b, i1, width, height, mask)
-        x2, y2, k2 = _screen(vd_ptr, m_ptr, b, i2, width, height, mask)
-        t0, s0 = _crossing(x0, y0, x1, y1, fx, p0, VERTICAL)
-        t1, s1 = _crossing(x1, y1, x2, y2, fx, p0, VERTICAL)
-        t2, s2 = _crossing(x2, y2, x0, y0, fx, p0, VERTICAL)
-        return t0, t1, t2, s0, s1, s2, k0 & k1 & k2, i0, i1, i2
-
-    @triton.jit
-    def _pick(t0, t1, t2, v0, v1, v2, near_a):
-        """The edge with the first valid crossing away from the occluding pixel (the first of
-        equal ones, as ``argmin``), its t, and whether any is valid (``torch_path._pick``)."""
-        inf = float("inf")
-        k0 = tl.where(v0, tl.where(near_a, t0, -t0), inf)
-        k1 = tl.where(v1, tl.where(near_a, t1, -t1), inf)
-        k2 = tl.where(v2, tl.where(near_a, t2, -t2), inf)
-        e = tl.where(k1 < k0, 1, 0)
-        best = tl.minimum(k0, k1)
-        e = tl.where(k2 < best, 2, e)
-        t = tl.where(e == 0, t0, tl.where(e == 1, t1, t2))
-        return e, t, v0 | v1 | v2
-
-    @triton.jit
-    def _walk_kernel(vd_ptr, f_ptr, nbr_ptr, facing_ptr, m_ptr, b_ptr, cur_ptr, near_ptr,
-                     walk_ptr, fixed_ptr, p0_ptr, code_ptr, n_pairs, n_faces, width, height,
-                     MAX_WALK: tl.constexpr, VERTICAL: tl.constexpr, BLOCK: tl.constexpr):
-        pid = tl.program_id(0)
-        p = pid * BLOCK + tl.arange(0, BLOCK)
-        live = p < n_pairs
-        b = tl.load(b_ptr + p, mask=live, other=0)
-        cur = tl.load(cur_ptr + p, mask=live, other=0)
-        near_a = tl.load(near_ptr + p, mask=live, other=0) != 0
-        walk = tl.load(walk_ptr + p, mask=live, other=0) != 0
-        fx = tl.load(fixed_ptr + p, mask=live, other=0.0)
-        p0 = tl.load(p0_ptr + p, mask=live, other=0.0)
-        t0, t1, t2, s0, s1, s2, ok, i0, i1, i2 = _face_crossings(
-            vd_ptr, f_ptr, m_ptr, b, cur, fx, p0, width, height, live, VERTICAL)
-        e, t, alive = _pick(t0, t1, t2, (t0 >= 0) & (t0 <= 1), (t1 >= 0) & (t1 <= 1),
-                            (t2 >= 0) & (t2 <= 1), near_a)
-        steep = tl.where(e == 0, s0, tl.where(e == 1, s1, s2))
-        active = live & alive & ok
-        code = tl.full((BLOCK,), -1, tl.int64)
-        fb = b * n_faces
-        step = 0
-        while (tl.max(active.to(tl.int32), axis=0) > 0) & (step < MAX_WALK):
-            n = tl.load(nbr_ptr + cur * 3 + e, mask=active, other=-1)
-            fc = tl.load(facing_ptr + fb + cur, mask=active, other=0)
-            fn = tl.load(facing_ptr + fb + tl.maximum(n, 0), mask=active, other=0)
-            sil = (n < 0) | (fn != fc)
-            code = tl.where(active & sil & steep, cur * 3 + e, code)
-            go = active & ~sil & walk
-            e1 = tl.where(e == 2, 0, e + 1)
-            ia = tl.load(f_ptr + cur * 3 + e, mask=go, other=0)
-            ib = tl.load(f_ptr + cur * 3 + e1, mask=go, other=0)
-            u0, u1, u2, r0, r1, r2, okn, j0, j1, j2 = _face_crossings(
-                vd_ptr, f_ptr, m_ptr, b, n, fx, p0, width, height, go, VERTICAL)
-            v0 = (u0 >= 0) & (u0 <= 1) & ~(((j0 == ia) & (j1 == ib)) | ((j0 == ib) & (j1 == ia))) \
-                & tl.where(near_a, u0 >= t, u0 <= t)
-            v1 = (u1 >= 0) & (u1 <= 1) & ~(((j1 == ia) & (j2 == ib)) | ((j1 == ib) & (j2 == ia))) \
-                & tl.where(near_a, u1 >= t, u1 <= t)
-            v2 = (u2 >= 0) & (u2 <= 1) & ~(((j2 == ia) & (j0 == ib)) | ((j2 == ib) & (j0 == ia))) \
-                & tl.where(near_a, u2 >= t, u2 <= t)
-            e2, tn, found = _pick(u0, u1, u2, v0, v1, v2, near_a)
-            active = go & found & okn
-            cur = tl.where(active, n, cur)
-            e = tl.where(active, e2, e)
-            t = tl.where(active, tn, t)
-            steep = tl.where(e2 == 0, r0, tl.where(e2 == 1, r1, r2))
-            step += 1
-        tl.store(code_ptr + p, code, mask=live)
-
-
-@_guarded
-def walk_codes(vd, f, nbr, facing, m64, b, cur, near_a, walk, fixed, p0, vertical: bool,
-               width: int, height: int, max_walk: int) -> torch.Tensor:
-    """``torch_path._walk`` in one kernel: (P,) silhouette edge codes (face * 3 + edge, -1)."""
-    code = torch.empty(len(b), dtype=torch.int64, device=b.device)
-    if len(b) == 0:
-        return code
-    grid = (triton.cdiv(len(b), _BLOCK),)
-    _walk_kernel[grid](vd.contiguous(), f.contiguous(), nbr.contiguous(), facing.contiguous(),
-                       m64.contiguous(), b.contiguous(), cur.contiguous(),
-                       near_a.to(torch.int8), walk.to(torch.int8), fixed.contiguous(),
-                       p0.contiguous(), code, len(b), f.shape[0], width, height,
-                       MAX_WALK=max_walk, VERTICAL=vertical, BLOCK=_BLOCK)
-    return code
