@@ -6,7 +6,8 @@ A noisy sphere of about four reference faces per micro-triangle; a micro-mesh on
 base at uniform levels, its displacements baked by projection (as a construction's are close
 to the answer when the fit starts). Per size: samples, unknowns, assembling the system (closest
 points, then the sums per micro-triangle the fit uses, and beside them the simplest way: the
-sparse products of its rows), each solve, the CG iterations and the relative difference of
+sparse products of its rows; the same two with the base vertices as unknowns too, the base
+round's system), each solve, the CG iterations and the relative difference of
 the solutions; then the whole fit (two rounds) as a construction runs it.
 
     python bench/fit_bench.py [--levels 3 4 5] [--json FILE]
@@ -48,13 +49,20 @@ def main() -> None:
         t_rows, (Mr, _) = timed(lambda: normal_equations(mm, mm.displacements, samples, 1e-3,
                                                          0.1, by_rows=True))
         assert abs(M - Mr).max() < 1e-12 * abs(M).max(), "the two assemblies differ"
+        t_joint, (Mj, _) = timed(lambda: normal_equations(mm, mm.displacements, samples, 1e-3,
+                                                          0.1, base_stiffness=1e-3))
+        t_joint_rows, (Mjr, _) = timed(lambda: normal_equations(
+            mm, mm.displacements, samples, 1e-3, 0.1, base_stiffness=1e-3, by_rows=True))
+        assert abs(Mj - Mjr).max() < 1e-12 * abs(Mjr).max(), "the two joint assemblies differ"
+        del Mj, Mjr
         t_lu, x_lu = timed(lambda: spla.spsolve(M.tocsc(), b))
         iters = []
         t_cg, x_cg = timed(lambda: solve_normal_equations(M, b, mm.displacements,
                                                           callback=lambda _: iters.append(1)))
         t_fit, _ = timed(lambda: fit_displacements(mm, ref, samples=samples))
         rec = {"level": level, "micro_vertices": mm.n_vertices, "samples": len(samples[0]),
-               "assemble_s": t_asm, "assemble_rows_s": t_rows, "superlu_s": t_lu, "cg_s": t_cg,
+               "assemble_s": t_asm, "assemble_rows_s": t_rows, "assemble_joint_s": t_joint,
+               "assemble_joint_rows_s": t_joint_rows, "superlu_s": t_lu, "cg_s": t_cg,
                "cg_iterations": len(iters),
                "speed_up": t_lu / t_cg,
                "relative_difference": float(np.linalg.norm(x_cg - x_lu) / np.linalg.norm(x_lu)),

@@ -11,6 +11,7 @@ from core.fit import (FitError, fit_displacements, fit_micromesh, fit_samples, n
 from core.laplacian import uniform_laplacian
 from core.mesh import TriMesh
 from core.micromesh import MicroMesh
+from core.microtopology import balance_levels
 
 
 def mean_distance(reference: TriMesh, mm: MicroMesh) -> float:
@@ -99,24 +100,39 @@ def test_moving_the_base_too_brings_the_surface_closer(bumpy):
     np.testing.assert_allclose(stiff.displacements, alone.displacements, atol=1e-3 * edge)
 
 
-def test_the_per_triangle_system_is_the_rows_system(bumpy):
-    """The displacement-only rounds assemble their normal equations per micro-triangle, the
-    joint rounds from the rows themselves: both are the same least squares, so the rows'
-    system (alone, and as the joint system's displacement block) is the per-triangle one."""
+@pytest.mark.parametrize("mixed", [False, True])
+def test_the_compiled_systems_are_the_rows_system(bumpy, mixed):
+    """The rounds sum their normal equations in compiled passes (per micro-triangle; with the
+    base also per micro-vertex and base face): the same least squares as the rows' sparse
+    products, over the displacements alone and with the base vertices (moved by some offsets
+    already), on uniform and on mixed levels (micro-vertices on edges between levels)."""
     ref, baked = bumpy
+    if mixed:
+        levels = np.where(np.arange(baked.base.n_faces) % 3 == 0, 3, 2)
+        mm = MicroMesh.flat(baked.base, balance_levels(baked.base, levels))
+        baked = mm.with_displacements(bake_displacements(
+            mm.micro_vertex_base_positions(), mm.micro_vertex_directions(), ref,
+            max_distance=0.5).displacement)
     samples = fit_samples(baked, ref)
-    n = baked.n_vertices
+    n, nb = baked.n_vertices, baked.base.n_vertices
+    offsets = 0.01 * np.random.default_rng(4).standard_normal((nb, 3))
     for slopes in (0.0, 0.1):
         M, b = normal_equations(baked, baked.displacements, samples, 1e-3, slopes)
-        Mj, bj = normal_equations(baked, baked.displacements, samples, 1e-3, slopes,
-                                  base_stiffness=1e-3)
         Mr, br = normal_equations(baked, baked.displacements, samples, 1e-3, slopes,
                                   by_rows=True, chunk=5000)
         scale = abs(M).max()
-        for other, rhs in ((Mr, br), (Mj[:n, :n], bj[:n])):
-            assert abs(M - other).max() < 1e-12 * scale
-            np.testing.assert_allclose(b, rhs, rtol=0, atol=1e-12 * abs(b).max())
+        assert abs(M - Mr).max() < 1e-12 * scale
+        np.testing.assert_allclose(b, br, rtol=0, atol=1e-12 * abs(b).max())
         assert M.shape == (n, n) and abs(M - M.T).max() < 1e-12 * scale
+        Mj, bj = normal_equations(baked, baked.displacements, samples, 1e-3, slopes,
+                                  base_stiffness=1e-3, offsets=offsets)
+        Mjr, bjr = normal_equations(baked, baked.displacements, samples, 1e-3, slopes,
+                                    base_stiffness=1e-3, offsets=offsets, by_rows=True,
+                                    chunk=5000)
+        scale = abs(Mjr).max()
+        assert Mj.shape == (n + 3 * nb, n + 3 * nb)
+        assert abs(Mj - Mjr).max() < 1e-12 * scale and abs(Mj - Mj.T).max() < 1e-12 * scale
+        np.testing.assert_allclose(bj, bjr, rtol=0, atol=1e-12 * abs(bjr).max())
 
 
 def test_bad_settings(bumpy):

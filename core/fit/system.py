@@ -17,6 +17,7 @@ from ..barycentric import barycentrics
 from ..closest import ClosestPointIndex
 from ..laplacian import uniform_laplacian
 from ..micromesh import MicroMesh
+from .joint_sums import joint_system
 from .triangle_sums import triangle_sums
 
 
@@ -32,9 +33,10 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, s
     offsets (3 nb, x then y then z), held by ``base_stiffness`` · (weight per base vertex) ·
     |offsets|². M is (n, n) or (n + 3 nb, n + 3 nb).
 
-    Over the displacements alone the system is summed per micro-triangle in one compiled
-    pass (:mod:`.triangle_sums`); with the base, or ``by_rows`` (the general way, which the
-    tests and ``bench/fit_bench.py`` compare it with), from the rows themselves, ``chunk``
+    The system is summed in one compiled pass over the samples: per micro-triangle over the
+    displacements alone (:mod:`.triangle_sums`), with the base also per (micro-vertex, base
+    face) pair and per base face (:mod:`.joint_sums`). ``by_rows``: from the rows themselves
+    (the general way, which the tests and ``bench/fit_bench.py`` compare them with), ``chunk``
     samples at a time (the rows of all samples at once took 6 KB per sample at the peak).
     """
     W = mm.topology.interp.tocsr()
@@ -48,9 +50,12 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, s
     corners = T[tri]                                          # (s, 3)
     B = barycentrics(cp, X[corners])
     joint = base_stiffness > 0
-    if joint or by_rows:
+    if by_rows:
         M, b = _row_system(corners, B, pts, normals, weights, P, D, W if joint else None,
                            n + 3 * nb if joint else n, slopes, chunk)
+    elif joint:
+        M, b = joint_system(corners, B, pts, normals, weights, tri, T, P, D, W, mm.topology,
+                            mm.base.faces, slopes)
     else:
         M, b = _displacement_system(corners, B, pts, normals, weights, tri, T, P, D, slopes)
     # Smoothness of the displacement as a length (|D_k| d_k): the same weight whether the
