@@ -8,6 +8,7 @@ The devices' results differ only in float summation order (the render is determi
 each): the table shows how far apart their PSNRs end.
 
     python bench/device_bench.py [--input MESH.ply] [--devices cpu cuda] [--out DIR] [--json FILE]
+        [--profile]
 
 Without ``--input``: a noisy sphere of about 40k faces.
 """
@@ -18,12 +19,13 @@ import os
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 from _common import ROOT, parser, print_table, write_json
 
 
-def run_one(mesh: str | None, device: str, out: str) -> dict:
+def run_one(mesh: str | None, device: str, out: str, profile: bool = False) -> dict:
     import torch
 
     from core import primitives
@@ -36,7 +38,8 @@ def run_one(mesh: str | None, device: str, out: str) -> dict:
     ref = read_mesh(mesh) if mesh else TriMesh(*primitives.noisy_sphere(40_000, seed=3))
     name = Path(mesh).stem if mesh else "noisy_sphere"
     t0 = time.perf_counter()
-    r = construct(ref, None, None, preset("default", device=device))
+    with optimiser_profile(profile, device) as on_progress:
+        r = construct(ref, None, None, preset("default", device=device), progress=on_progress)
     wall = time.perf_counter() - t0
     path = Path(out) / f"{name}_{device}.gltf"
     write_micromesh(path, r.micromesh, r.bounds)
@@ -48,6 +51,23 @@ def run_one(mesh: str | None, device: str, out: str) -> dict:
             r.timings.get("optimize", float("nan")) / it, "iterations": it,
             "psnr": r.metrics["psnr"], "micro_triangles": r.metrics["micro_triangles"],
             "base_faces": r.metrics["base_faces"], "gpu_peak_mb": gpu_peak, "file": str(path)}
+
+
+@contextmanager
+def optimiser_profile(enabled: bool, device: str):
+    """A progress callback that, when ``enabled``, records optimiser iterations 21-25 with
+    torch.profiler and prints the ops that took the most time (stderr), after the run."""
+    if not enabled:
+        yield None
+        return
+    from torch.profiler import ProfilerActivity, profile, schedule
+
+    acts = [ProfilerActivity.CPU] + ([ProfilerActivity.CUDA] if device == "cuda" else [])
+    with profile(activities=acts, schedule=schedule(wait=20, warmup=2, active=5, repeat=1)) as prof:
+        yield lambda p: prof.step() if p.phase == "optimize" else None
+    key = "cuda_time_total" if device == "cuda" else "cpu_time_total"
+    print(prof.key_averages().table(sort_by=key, row_limit=25), file=sys.stderr)
+    print(prof.key_averages().table(sort_by="cpu_time_total", row_limit=15), file=sys.stderr)
 
 
 def cpu_name() -> str:
@@ -67,6 +87,8 @@ def main() -> None:
     ap.add_argument("--input", default=None, help="a .ply or .obj (default: a procedural rock)")
     ap.add_argument("--devices", nargs="+", default=["cpu", "cuda"], choices=["cpu", "cuda"])
     ap.add_argument("--out", default="/tmp/micromesh_device_bench")
+    ap.add_argument("--profile", action="store_true",
+                    help="torch.profiler over optimiser iterations 21-25: the top ops in OUT/DEVICE.log")
     ap.add_argument("--child", help=argparse_suppress())
     a = ap.parse_args()
     from core.runtime.threads import set_threads
@@ -78,7 +100,7 @@ def main() -> None:
     Path(a.out).mkdir(parents=True, exist_ok=True)
     records = []
     for dev in a.devices:
-        cfg = {"mesh": a.input, "device": dev, "out": a.out}
+        cfg = {"mesh": a.input, "device": dev, "out": a.out, "profile": a.profile}
         cmd = [sys.executable, __file__, "--child", json.dumps(cfg), "--threads", str(threads)]
         with open(Path(a.out) / f"{dev}.log", "w") as log:
             p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=log, text=True, cwd=ROOT)
