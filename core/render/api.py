@@ -65,8 +65,8 @@ def render(verts: torch.Tensor, faces: torch.Tensor, cams, *, kind: str = "shade
     vn = vertex_normals(verts, faces) if kind in ("shaded", "normal") else None
     img = torch_path.shade_torch(verts, faces, vn, raster.mvp, raster.tri_id, kind)
     if antialias:
-        img = torch_antialias.antialias_torch(img, verts, faces, face_neighbours(faces), raster.mvp,
-                                         raster.tri_id, raster.depth)
+        img = torch_antialias.antialias_torch(img, verts, faces, face_neighbours(faces),
+                                              raster.mvp, raster.tri_id, raster.depth)
     return img
 
 
