@@ -112,14 +112,15 @@ def fitted(run: RunState, mm: MicroMesh) -> tuple[MicroMesh, tuple]:
     with run.timer.phase("fit"):
         samples = fit_samples(mm, ref)
         mm = _fit(run, mm, samples)
+    error = None                # the shading error of (mm, samples), where already known
     if run.s.residual_lod > 0 and run.fixed is None and run.cost is not None:
         run.check_stop()
         run.announce("residual_lod")
-        mm, samples = _exchanged(run, mm, samples)
+        mm, samples, error = _exchanged(run, mm, samples)
     if run.s.fit_base_stiffness > 0 and run.fixed is None:
         run.check_stop()
         run.announce("base_fit")
-        mm = _base_moved(run, mm, samples)
+        mm = _base_moved(run, mm, samples, error)
     return mm, samples
 
 
@@ -127,14 +128,17 @@ def fitted(run: RunState, mm: MicroMesh) -> tuple[MicroMesh, tuple]:
 _SHELL_GROWTH = 1.1
 
 
-def _base_moved(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
+def _base_moved(run: RunState, mm: MicroMesh, samples, before: float | None = None
+                ) -> MicroMesh:
     """One fit round with the base vertices as unknowns, kept where it lowers the shading
-    error without widening the shell by more than a tenth (on parts thinner than the samples'
-    spacing a base vertex can be pulled across to the far side);
-    ``run.notes["base_fit"]`` says what happened."""
+    error (``before``: mm's, where the caller knows it) without widening the shell by more
+    than a tenth (on parts thinner than the samples' spacing a base vertex can be pulled
+    across to the far side); ``run.notes["base_fit"]`` says what happened."""
     with run.timer.phase("fit"):
         moved = _fit(run, mm, samples, run.s.fit_base_stiffness, rounds=1)
-        before, after = (surface_errors(m, samples)[1].sum() for m in (mm, moved))
+        if before is None:
+            before = surface_errors(mm, samples)[1].sum()
+        after = surface_errors(moved, samples)[1].sum()
         shells = [micromesh_shell_volume(m, tight_bounds(m)) for m in (mm, moved)]
     keep = bool(after < before and shells[1] <= _SHELL_GROWTH * shells[0])
     run.notes["base_fit"] = {"kept": keep, "shading_error_before": float(before),
@@ -143,14 +147,15 @@ def _base_moved(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
     return moved if keep else mm
 
 
-def _exchanged(run: RunState, mm: MicroMesh, samples) -> tuple[MicroMesh, tuple]:
+def _exchanged(run: RunState, mm: MicroMesh, samples) -> tuple[MicroMesh, tuple, float | None]:
     """The residual exchange of levels, fitted, kept where it lowers the shading error; the
-    micro-mesh kept and the samples that fit it."""
+    micro-mesh kept, the samples that fit it and, where it is the first, its shading error on
+    them."""
     with run.timer.phase("residual_lod"):
         dist, normal = surface_errors(mm, samples)
         new = residual_exchange(run, mm.levels, dist)
     if np.array_equal(new, mm.levels):
-        return mm, samples
+        return mm, samples, float(normal.sum())
     with run.timer.phase("fit"):
         moved = mm.with_levels(new)
         moved_samples = fit_samples(moved, run.scene.ref)
@@ -162,7 +167,7 @@ def _exchanged(run: RunState, mm: MicroMesh, samples) -> tuple[MicroMesh, tuple]
                                  "faces_down": int((new < mm.levels).sum()), "kept": keep,
                                  "shading_error_before": float(normal.sum()),
                                  "shading_error_after": float(after)}
-    return (moved, moved_samples) if keep else (mm, samples)
+    return (moved, moved_samples, None) if keep else (mm, samples, float(normal.sum()))
 
 
 def _fit(run: RunState, mm: MicroMesh, samples, base_stiffness: float = 0.0,
