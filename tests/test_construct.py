@@ -1,5 +1,7 @@
 """The construction entry point on small procedural meshes: beats the staged baseline, keeps
-the surface when subdividing, cancels within one iteration, is reproducible."""
+the surface when subdividing, cancels within one iteration, is reproducible (on CUDA too,
+where there is one). Its input's reading: ``test_construct_inputs``; its end:
+``test_finalise``."""
 import numpy as np
 import pytest
 
@@ -313,194 +315,6 @@ def test_large_micro_laplacians_use_cg(scene, monkeypatch):
     np.testing.assert_allclose(xb, xa, atol=1e-3 * np.ptp(xa, axis=0).max())
 
 
-def test_a_reference_with_faces_wound_both_ways_is_turned_and_said(scene):
-    """Half the reference's faces flipped: the construction turns them back (the caller's
-    mesh is not changed), says so, and gets the result of the clean reference."""
-    ref, base = scene
-    mask = np.random.default_rng(0).random(ref.n_faces) < 0.5
-    flipped = TriMesh(ref.vertices, np.where(mask[:, None], ref.faces[:, ::-1], ref.faces))
-    before = flipped.faces.copy()
-    clean = staged_baseline(ref, base, 2, small())
-    fixed = staged_baseline(flipped, base, 2, small())
-    np.testing.assert_array_equal(flipped.faces, before)
-    assert clean.metrics["warnings"] == []
-    assert any("wound in opposite directions" in w for w in fixed.metrics["warnings"])
-    assert abs(fixed.metrics["psnr"] - clean.metrics["psnr"]) < 0.05
-
-
-def test_non_manifold_edges_are_said(scene):
-    """A fin glued onto one edge of the sphere: three faces on that edge, and the run says so."""
-    ref, base = scene
-    a, b = ref.faces[0, 0], ref.faces[0, 1]
-    tip = ref.vertices[[a, b]].mean(0) * 1.3
-    fin = TriMesh(np.vstack([ref.vertices, tip]), np.vstack([ref.faces, [[a, b, ref.n_vertices]]]))
-    r = staged_baseline(fin, base, 1, small())
-    assert any("1 non-manifold edges" in w for w in r.metrics["warnings"]), r.metrics["warnings"]
-
-
-def test_residual_exchange_moves_levels_to_where_the_fit_misses():
-    """Faces with large fit residuals go up, quiet ones go down, the budget and the ±1 rule
-    hold (core.construct.choose_levels.residual_exchange)."""
-    from types import SimpleNamespace
-
-    from core.construct.choose_levels import residual_exchange
-    from core.lod import effective_micro_triangles
-    from core.microtopology import is_balanced
-
-    v, f = icosphere(2)
-    base = TriMesh(v, f)
-    levels = np.full(base.n_faces, 2)
-    cost = lambda lv: effective_micro_triangles(lv, base.face_adjacency)  # noqa: E731
-    run = SimpleNamespace(s=preset("default", residual_lod=0.15), base=base, cost=cost,
-                          budget=cost(levels))
-    E = np.full(base.n_faces, 1e-6)
-    hot = np.flatnonzero(base.vertices[base.faces].mean(1)[:, 2] > 0.8)
-    E[hot] = 1.0
-    new = residual_exchange(run, levels, E)
-    assert cost(new) <= run.budget and is_balanced(base, new)
-    assert (new[hot] == 3).all() and (new < 2).any()
-    run.s = preset("default", residual_lod=0.0)
-    np.testing.assert_array_equal(residual_exchange(run, levels, E), levels)
-
-
-@pytest.mark.parametrize("hot_cap", [False, True])
-def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, monkeypatch):
-    """finalise.fitted: the levels residual_exchange moves are fitted again and kept only when
-    the shading error of the same reference samples falls; otherwise the first fit stays.
-    Detail on one cap of a sphere: moving levels there helps (kept). Moving levels onto a
-    smooth cap while the detailed one loses them hurts (refused)."""
-    from types import SimpleNamespace
-
-    import core.construct.finalise as fin
-    from core.fit import fit_samples, surface_errors
-    from core.lod import effective_micro_triangles
-    from core.metrics import PhaseTimer
-    from core.micromesh import MicroMesh
-
-    v, f = icosphere(2)
-    base = TriMesh(v, f)
-    rv, rf = icosphere(5)
-    bumps = 1 + 0.03 * np.sin(40 * rv[:, 0]) * np.sin(40 * rv[:, 1]) * (rv[:, 2] > 0.3)
-    ref = TriMesh(rv * bumps[:, None], rf)
-    levels = np.full(base.n_faces, 2)
-    mm = MicroMesh.flat(base, levels)
-    cost = lambda lv: effective_micro_triangles(lv, base.face_adjacency)  # noqa: E731
-    run = SimpleNamespace(s=preset("default"), base=base, cost=cost, budget=cost(levels),
-                          fixed=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
-                          notes={}, check_stop=lambda: None,
-                          announce=lambda phase: None)
-    z = base.vertices[base.faces].mean(1)[:, 2]
-    if hot_cap:       # the exchange as it should go: up where the detail is
-        up, down = z > 0.5, z < -0.5
-    else:             # the wrong way round: up on the smooth cap, down on the detail
-        up, down = z < -0.5, z > 0.5
-    wanted = np.where(up, 3, np.where(down, 1, levels))
-    monkeypatch.setattr(fin, "residual_exchange", lambda run, lv, E: wanted)
-    out, _ = fin.fitted(run, mm)
-    note = run.notes["residual_lod"]
-    assert note["kept"] is hot_cap
-    assert (note["shading_error_after"] < note["shading_error_before"]) is hot_cap
-    np.testing.assert_array_equal(out.levels, wanted if hot_cap else levels)
-    samples = fit_samples(mm, ref)
-    first = surface_errors(fin.fitted(SimpleNamespace(**{**vars(run), "cost": None}), mm)[0],
-                           samples)[1].sum()
-    assert surface_errors(out, samples)[1].sum() <= first * (1 + 1e-9)  # never worse
-
-
-def test_many_parts_are_said():
-    """From core.construct.frame.MANY_PARTS connected components on, the run says what they
-    cost; fewer parts get no warning."""
-    from core.construct.frame import MANY_PARTS, oriented_reference
-
-    v, f = icosphere(1)
-
-    def parts(n):
-        return TriMesh(np.vstack([v * 0.1 + [k, 0, 0] for k in range(n)]),
-                       np.vstack([f + k * len(v) for k in range(n)]))
-
-    _, few = oriented_reference(parts(MANY_PARTS - 1))
-    _, many = oriented_reference(parts(MANY_PARTS))
-    assert few == []
-    assert many == [f"the input has {MANY_PARTS} separate parts: the base keeps every one, so "
-                    "small parts take base triangles and budget from the large ones"]
-
-
-def test_seams_split_in_a_file_are_not_parts():
-    """A sphere whose vertices are split along every face (as files split them at UV seams or
-    flat-shaded edges) is one part: no many-parts warning."""
-    from core.construct.frame import oriented_reference
-
-    v, f = icosphere(2)
-    split = TriMesh(v[f.reshape(-1)], np.arange(3 * len(f)).reshape(-1, 3))
-    assert split.n_components == len(f)
-    assert oriented_reference(split)[1] == []
-
-
-def test_loose_vertices_and_repeated_faces_are_left_out():
-    """A stray vertex far away (a loose vertex or edge) would shrink the object in the unit
-    frame, and repeated faces make edges look non-manifold: both are left out and said, and
-    what remains is the clean mesh, so the construction is the clean mesh's."""
-    from core.construct.frame import oriented_reference
-
-    v, f = icosphere(2)
-    far = np.vstack([v[:5], [[100.0, 0, 0], [100.0, 1, 0]], v[5:]])      # two loose vertices
-    remap = np.where(f >= 5, f + 2, f)
-    messy = TriMesh(far, np.vstack([remap, np.roll(remap[:3], 1, 1), remap[7:8]]))
-    got, warnings = oriented_reference(messy)
-    clean, none = oriented_reference(TriMesh(v, f))
-    assert none == []
-    assert warnings == ["2 vertices in no face (loose vertices or edges) were left out",
-                        "4 repeated faces (the same three vertices again) were left out"]
-    np.testing.assert_array_equal(got.vertices, clean.vertices)
-    np.testing.assert_array_equal(got.faces, clean.faces)
-
-
-def test_a_flap_of_two_faces_wound_both_ways_is_left_out():
-    """A triangle hanging on one edge of the surface, once each way round (a sheet of no
-    thickness, as in the beast scan): both copies go, and the surface is manifold again."""
-    from core.construct.frame import oriented_reference
-
-    v, f = icosphere(2)
-    a, b = f[0, 0], f[0, 1]
-    tip = len(v)
-    flap = np.array([[a, b, tip], [b, a, tip]])
-    messy = TriMesh(np.vstack([v, [[0.0, 0.0, 3.0]]]), np.vstack([f, flap]))
-    assert len(messy.nonmanifold_edges) == 1
-    got, warnings = oriented_reference(messy)
-    assert warnings == ["2 faces with a copy wound the other way (sheets of no thickness) were "
-                        "left out"]
-    assert got.n_faces == len(f) and got.is_closed_manifold and len(got.nonmanifold_edges) == 0
-
-
-@pytest.mark.parametrize("growth", [1.1, 0.0])
-def test_the_base_moves_only_where_it_helps(growth, monkeypatch):
-    """finalise.fitted's last round moves the base vertices; it is kept where the shading
-    error falls and the shell widens by a tenth at most (here: a bumpy sphere, kept), else
-    the displacements-only fit stays (forced by allowing no shell at all)."""
-    from types import SimpleNamespace
-
-    import core.construct.finalise as fin
-    from core.metrics import PhaseTimer
-    from core.micromesh import MicroMesh
-
-    v, f = icosphere(2)
-    base = TriMesh(v, f)
-    rv, rf = icosphere(5)
-    ref = TriMesh(rv * (1 + 0.03 * np.sin(9 * rv[:, :1]) * np.sin(7 * rv[:, 1:2])), rf)
-    mm = MicroMesh.flat(base, np.full(base.n_faces, 2))
-    run = SimpleNamespace(s=preset("default", residual_lod=0.0), base=base, cost=None, budget=0,
-                          fixed=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
-                          notes={}, check_stop=lambda: None,
-                          announce=lambda phase: None)
-    monkeypatch.setattr(fin, "_SHELL_GROWTH", growth)
-    out, _ = fin.fitted(run, mm)
-    note = run.notes["base_fit"]
-    assert note["kept"] is (growth > 0)
-    assert note["shading_error_after"] < note["shading_error_before"]
-    moved = np.abs(out.base.vertices - base.vertices).max()
-    assert bool(moved > 0) is (growth > 0)
-
-
 def test_the_base_phase_reports_time_left():
     """Building the base reports its progress with the time left at the pace so far."""
     from core.construct.frame import prepare_base
@@ -524,3 +338,28 @@ def test_the_optimisers_time_left_is_bounded_by_the_time_limit():
     assert limited.bounded_eta(3.0) == 3.0
     free = Schedule(preset("default", time_limit_s=0.0), time.perf_counter() - 80.0, False)
     assert free.bounded_eta(500.0) == 500.0
+
+
+def test_a_reference_with_faces_wound_both_ways_is_turned_and_said(scene):
+    """Half the reference's faces flipped: the construction turns them back (the caller's
+    mesh is not changed), says so, and gets the result of the clean reference."""
+    ref, base = scene
+    mask = np.random.default_rng(0).random(ref.n_faces) < 0.5
+    flipped = TriMesh(ref.vertices, np.where(mask[:, None], ref.faces[:, ::-1], ref.faces))
+    before = flipped.faces.copy()
+    clean = staged_baseline(ref, base, 2, small())
+    fixed = staged_baseline(flipped, base, 2, small())
+    np.testing.assert_array_equal(flipped.faces, before)
+    assert clean.metrics["warnings"] == []
+    assert any("wound in opposite directions" in w for w in fixed.metrics["warnings"])
+    assert abs(fixed.metrics["psnr"] - clean.metrics["psnr"]) < 0.05
+
+
+def test_non_manifold_edges_are_said(scene):
+    """A fin glued onto one edge of the sphere: three faces on that edge, and the run says so."""
+    ref, base = scene
+    a, b = ref.faces[0, 0], ref.faces[0, 1]
+    tip = ref.vertices[[a, b]].mean(0) * 1.3
+    fin = TriMesh(np.vstack([ref.vertices, tip]), np.vstack([ref.faces, [[a, b, ref.n_vertices]]]))
+    r = staged_baseline(fin, base, 1, small())
+    assert any("1 non-manifold edges" in w for w in r.metrics["warnings"]), r.metrics["warnings"]

@@ -1,0 +1,109 @@
+"""The end of a construction (``core.construct.finalise`` and ``choose_levels``) on stand-in
+runs: the residual exchange of levels, kept only where it lowers the shading error, and the
+base round, kept only where it helps."""
+import numpy as np
+import pytest
+
+from core.mesh import TriMesh
+from core.settings import preset
+from tests.test_construct import icosphere
+
+
+def test_residual_exchange_moves_levels_to_where_the_fit_misses():
+    """Faces with large fit residuals go up, quiet ones go down, the budget and the ±1 rule
+    hold (core.construct.choose_levels.residual_exchange)."""
+    from types import SimpleNamespace
+
+    from core.construct.choose_levels import residual_exchange
+    from core.lod import effective_micro_triangles
+    from core.microtopology import is_balanced
+
+    v, f = icosphere(2)
+    base = TriMesh(v, f)
+    levels = np.full(base.n_faces, 2)
+    cost = lambda lv: effective_micro_triangles(lv, base.face_adjacency)  # noqa: E731
+    run = SimpleNamespace(s=preset("default", residual_lod=0.15), base=base, cost=cost,
+                          budget=cost(levels))
+    E = np.full(base.n_faces, 1e-6)
+    hot = np.flatnonzero(base.vertices[base.faces].mean(1)[:, 2] > 0.8)
+    E[hot] = 1.0
+    new = residual_exchange(run, levels, E)
+    assert cost(new) <= run.budget and is_balanced(base, new)
+    assert (new[hot] == 3).all() and (new < 2).any()
+    run.s = preset("default", residual_lod=0.0)
+    np.testing.assert_array_equal(residual_exchange(run, levels, E), levels)
+
+
+@pytest.mark.parametrize("hot_cap", [False, True])
+def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, monkeypatch):
+    """finalise.fitted: the levels residual_exchange moves are fitted again and kept only when
+    the shading error of the same reference samples falls; otherwise the first fit stays.
+    Detail on one cap of a sphere: moving levels there helps (kept). Moving levels onto a
+    smooth cap while the detailed one loses them hurts (refused)."""
+    from types import SimpleNamespace
+
+    import core.construct.finalise as fin
+    from core.fit import fit_samples, surface_errors
+    from core.lod import effective_micro_triangles
+    from core.metrics import PhaseTimer
+    from core.micromesh import MicroMesh
+
+    v, f = icosphere(2)
+    base = TriMesh(v, f)
+    rv, rf = icosphere(5)
+    bumps = 1 + 0.03 * np.sin(40 * rv[:, 0]) * np.sin(40 * rv[:, 1]) * (rv[:, 2] > 0.3)
+    ref = TriMesh(rv * bumps[:, None], rf)
+    levels = np.full(base.n_faces, 2)
+    mm = MicroMesh.flat(base, levels)
+    cost = lambda lv: effective_micro_triangles(lv, base.face_adjacency)  # noqa: E731
+    run = SimpleNamespace(s=preset("default"), base=base, cost=cost, budget=cost(levels),
+                          fixed=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
+                          notes={}, check_stop=lambda: None,
+                          announce=lambda phase: None)
+    z = base.vertices[base.faces].mean(1)[:, 2]
+    if hot_cap:       # the exchange as it should go: up where the detail is
+        up, down = z > 0.5, z < -0.5
+    else:             # the wrong way round: up on the smooth cap, down on the detail
+        up, down = z < -0.5, z > 0.5
+    wanted = np.where(up, 3, np.where(down, 1, levels))
+    monkeypatch.setattr(fin, "residual_exchange", lambda run, lv, E: wanted)
+    out, _ = fin.fitted(run, mm)
+    note = run.notes["residual_lod"]
+    assert note["kept"] is hot_cap
+    assert (note["shading_error_after"] < note["shading_error_before"]) is hot_cap
+    np.testing.assert_array_equal(out.levels, wanted if hot_cap else levels)
+    if not hot_cap:   # the base round starts from the same micro-mesh: its error is reused
+        assert run.notes["base_fit"]["shading_error_before"] == note["shading_error_before"]
+    samples = fit_samples(mm, ref)
+    first = surface_errors(fin.fitted(SimpleNamespace(**{**vars(run), "cost": None}), mm)[0],
+                           samples)[1].sum()
+    assert surface_errors(out, samples)[1].sum() <= first * (1 + 1e-9)  # never worse
+
+
+@pytest.mark.parametrize("growth", [1.1, 0.0])
+def test_the_base_moves_only_where_it_helps(growth, monkeypatch):
+    """finalise.fitted's last round moves the base vertices; it is kept where the shading
+    error falls and the shell widens by a tenth at most (here: a bumpy sphere, kept), else
+    the displacements-only fit stays (forced by allowing no shell at all)."""
+    from types import SimpleNamespace
+
+    import core.construct.finalise as fin
+    from core.metrics import PhaseTimer
+    from core.micromesh import MicroMesh
+
+    v, f = icosphere(2)
+    base = TriMesh(v, f)
+    rv, rf = icosphere(5)
+    ref = TriMesh(rv * (1 + 0.03 * np.sin(9 * rv[:, :1]) * np.sin(7 * rv[:, 1:2])), rf)
+    mm = MicroMesh.flat(base, np.full(base.n_faces, 2))
+    run = SimpleNamespace(s=preset("default", residual_lod=0.0), base=base, cost=None, budget=0,
+                          fixed=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
+                          notes={}, check_stop=lambda: None,
+                          announce=lambda phase: None)
+    monkeypatch.setattr(fin, "_SHELL_GROWTH", growth)
+    out, _ = fin.fitted(run, mm)
+    note = run.notes["base_fit"]
+    assert note["kept"] is (growth > 0)
+    assert note["shading_error_after"] < note["shading_error_before"]
+    moved = np.abs(out.base.vertices - base.vertices).max()
+    assert bool(moved > 0) is (growth > 0)
