@@ -12,11 +12,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .mesh import TriMesh
-from .microtopology import (
-    LevelError, MicroTopology, _as_levels, _level_grid, _level_triangles, _snap_targets,
-    balance_levels, bird_order, build_topology, count_micro_vertices, is_balanced,
-    BUILD_MAX_LEVEL, MAX_LEVEL,
-)
+from .level_grid import (BUILD_MAX_LEVEL, MAX_LEVEL, LevelError, _level_grid, _level_triangles,
+                         _snap_targets, bird_order)
+from .microtopology import (MicroTopology, _as_levels, balance_levels, build_topology,
+                            count_micro_vertices, is_balanced)
 
 
 class MicroMeshError(ValueError):

@@ -9,7 +9,8 @@ import numpy as np
 
 from ..mesh import TriMesh
 from ..micromesh import MicroMesh, MicroMeshError
-from ..microtopology import LevelError, edge_flags, is_balanced, snap_targets
+from ..level_grid import LevelError, snap_targets
+from ..microtopology import edge_flags, is_balanced
 
 
 class MicromeshFileError(ValueError):
