@@ -15,6 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..runtime.jit import kernel
+from .triangle_sums import block_entries
 
 
 @kernel(cache=True)
@@ -95,10 +96,7 @@ def joint_system(corners, B, pts, normals, weights, tri, T, P, D, W, topology, b
                f64(D), float(slopes), tri_face, i64(base_faces), i64(slot.reshape(m, 3)),
                i64(W.indptr), i64(W.indices), f64(W.data), n, nb, G, C, H, b)
     del slot
-    iu = [(i, j) for i in range(3) for j in range(3)]
-    dd_r = np.concatenate([T[:, i] for i, j in iu])
-    dd_c = np.concatenate([T[:, j] for i, j in iu])
-    dd_v = np.concatenate([G[:, min(i, j), max(i, j)] for i, j in iu])
+    dd_r, dd_c, dd_v = block_entries(G, T)
     del G
     face_of = pairs % nf
     base_col = n + np.arange(3)[None, :, None] * nb + base_faces[face_of][:, None, :]  # (p, 3, 3)

@@ -40,3 +40,11 @@ def triangle_sums(tri, corners, B, pts, normals, weights, P, D, slopes, G, b):  
                 mask = 2.0 if i == j else -1.0
                 G[t, i, j] += w * (a[i] * a[j] + slopes * mask * g[i] * g[j])
             b[corners[s, i]] += w * (a[i] * point + slopes * g[i] * (hs - 3.0 * h[i]))
+
+
+def block_entries(G: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(rows, cols, values) of the symmetric 3 x 3 blocks ``G`` (m, 3, 3), upper triangle
+    stored, at the corners ``T`` (m, 3) of their micro-triangles (duplicates to be summed)."""
+    iu = [(i, j) for i in range(3) for j in range(3)]
+    return (np.concatenate([T[:, i] for i, j in iu]), np.concatenate([T[:, j] for i, j in iu]),
+            np.concatenate([G[:, min(i, j), max(i, j)] for i, j in iu]))
