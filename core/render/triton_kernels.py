@@ -48,6 +48,12 @@ def guarded(fn):
 
 if triton is not None:
     @triton.jit
+    def _corners(ptr, i0, i1, i2, mask):
+        """The values at a face's three vertices of one per-vertex array."""
+        return (tl.load(ptr + i0, mask=mask, other=0.0), tl.load(ptr + i1, mask=mask, other=0.0),
+                tl.load(ptr + i2, mask=mask, other=0.0))
+
+    @triton.jit
     def _raster_kernel(f_ptr, sx_ptr, sy_ptr, w_ptr, z_ptr, keys_ptr, n_items, n_faces, n_verts,
                        view0, width, height, BLOCK: tl.constexpr):
         pid = tl.program_id(0)
@@ -59,18 +65,10 @@ if triton is not None:
         i1 = tl.load(f_ptr + face * 3 + 1, mask=live, other=0)
         i2 = tl.load(f_ptr + face * 3 + 2, mask=live, other=0)
         o = g * n_verts
-        x0 = tl.load(sx_ptr + o + i0, mask=live, other=0.0)
-        x1 = tl.load(sx_ptr + o + i1, mask=live, other=0.0)
-        x2 = tl.load(sx_ptr + o + i2, mask=live, other=0.0)
-        y0 = tl.load(sy_ptr + o + i0, mask=live, other=0.0)
-        y1 = tl.load(sy_ptr + o + i1, mask=live, other=0.0)
-        y2 = tl.load(sy_ptr + o + i2, mask=live, other=0.0)
-        w0 = tl.load(w_ptr + o + i0, mask=live, other=0.0)
-        w1 = tl.load(w_ptr + o + i1, mask=live, other=0.0)
-        w2 = tl.load(w_ptr + o + i2, mask=live, other=0.0)
-        z0 = tl.load(z_ptr + o + i0, mask=live, other=0.0)
-        z1 = tl.load(z_ptr + o + i1, mask=live, other=0.0)
-        z2 = tl.load(z_ptr + o + i2, mask=live, other=0.0)
+        x0, x1, x2 = _corners(sx_ptr + o, i0, i1, i2, live)
+        y0, y1, y2 = _corners(sy_ptr + o, i0, i1, i2, live)
+        w0, w1, w2 = _corners(w_ptr + o, i0, i1, i2, live)
+        z0, z1, z2 = _corners(z_ptr + o, i0, i1, i2, live)
         ok = live & (w0 > 0) & (w1 > 0) & (w2 > 0) & (z0 >= -w0) & (z1 >= -w1) & (z2 >= -w2)
         area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
         ok = ok & (area != 0) & (area == area) & (tl.abs(area) < float("inf"))
