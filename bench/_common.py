@@ -31,6 +31,12 @@ def parser(description: str) -> argparse.ArgumentParser:
     return p
 
 
+def add_child_option(p: argparse.ArgumentParser) -> None:
+    """The hidden ``--child JSON`` option of benchmarks that run each case in a process of
+    their own (the parent passes the case's keyword arguments)."""
+    p.add_argument("--child", help=argparse.SUPPRESS)
+
+
 def timed(fn: Callable[[], Any]) -> tuple[float, Any]:
     """(seconds, result) of one call."""
     t0 = time.perf_counter()

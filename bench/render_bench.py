@@ -160,7 +160,7 @@ def main() -> None:
     p.add_argument("--device", default="cpu", help="cpu or cuda (cuda runs the torch backends only)")
     p.add_argument("--profile", action="store_true",
                    help="also time each stage of the numba iteration alone (second table)")
-    p.add_argument("--child", help=argparse_suppress())
+    C.add_child_option(p)
     a = p.parse_args()
     from core.runtime.threads import set_threads
 
@@ -203,11 +203,6 @@ def main() -> None:
         C.print_table(stages, title="numba iteration by stage, each timed alone (s)")
     C.write_json(a.json, records, threads=threads)
 
-
-def argparse_suppress():
-    import argparse
-
-    return argparse.SUPPRESS
 
 
 if __name__ == "__main__":
