@@ -101,7 +101,7 @@ def process(bpy, source, args, settings, out, interrupt: Interrupt) -> dict:
                                                 args.layout, out)
     result_files.write_report(outcome, out)
     if args.ply:
-        from micromesh.core.meshio import write_ply
+        from micromesh.core.io.mesh_files import write_ply
 
         tess = outcome.micromesh.tessellate()
         write_ply(out.temp("_micromesh.ply"), tess.vertices, tess.triangles)

@@ -38,7 +38,7 @@ def references(faces: list[int]) -> list[tuple[str, TriMesh, float]]:
         out.append((f"noisy_sphere_{len(f) // 1000}k", TriMesh(v, f), 0.9))
     p = MESHES / "igea_269k.ply"
     if p.exists():
-        from core.meshio import read_mesh
+        from core.io.mesh_files import read_mesh
 
         mesh = read_mesh(p)
         mesh = TriMesh(unit_sphere_normalization(mesh.vertices).apply(mesh.vertices), mesh.faces)

@@ -20,7 +20,7 @@ from core.base import build_base, topology
 from core.base.build import welded
 from core.closest import ClosestPointIndex
 from core.mesh import TriMesh, unit_sphere_normalization
-from core.meshio import read_mesh
+from core.io.mesh_files import read_mesh
 from core.metrics import isotropy
 
 

@@ -100,7 +100,7 @@ def references(n_faces: int) -> list[tuple[str, TriMesh]]:
     out = [(f"noisy_sphere_{len(f) // 1000}k", TriMesh(unit_sphere_normalization(v).apply(v), f))]
     p = MESHES / "igea_269k.ply"
     if p.exists():
-        from core.meshio import read_mesh
+        from core.io.mesh_files import read_mesh
 
         m = read_mesh(p)
         out.append(("igea_269k", TriMesh(unit_sphere_normalization(m.vertices).apply(m.vertices),

@@ -32,7 +32,7 @@ def run_one(mesh: str | None, device: str, out: str, profile: bool = False) -> d
     from core.construct import construct
     from core.io.micromesh_export import write_micromesh
     from core.mesh import TriMesh
-    from core.meshio import read_mesh
+    from core.io.mesh_files import read_mesh
     from core.settings import preset
 
     ref = read_mesh(mesh) if mesh else TriMesh(*primitives.noisy_sphere(40_000, seed=3))

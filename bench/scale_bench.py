@@ -29,7 +29,7 @@ from _common import MESHES, ROOT, parser, print_table, write_json
 from core import primitives
 from core.construct.estimate import estimate
 from core.mesh import TriMesh
-from core.meshio import read_mesh, write_ply
+from core.io.mesh_files import read_mesh, write_ply
 from core.settings import preset
 
 SIZES = {"20k": 20_000, "100k": 100_000, "300k": 300_000, "1M": 1_000_000, "2M": 2_000_000}

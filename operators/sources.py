@@ -7,7 +7,7 @@ from pathlib import Path
 import bpy
 
 from ..core.io.micromesh_import import MicromeshFileError, is_micromesh_file, read_micromesh
-from ..core.meshio import read_mesh
+from ..core.io.mesh_files import read_mesh
 from . import bl_mesh
 
 
@@ -54,7 +54,7 @@ def _apply_modifiers(obj) -> None:
 def import_source(path: Path):
     """Import ``path`` into the (empty) scene; returns one mesh object named after the file.
 
-    PLY and OBJ go through our own reader (``core.meshio``), which refuses NaN or infinite
+    PLY and OBJ go through our own reader (``core.io.mesh_files``), which refuses NaN or infinite
     coordinates, face indices out of range and files cut short: Blender's importers "repair"
     those silently (NaN becomes 0, faces are dropped); coordinates stay as in the file (no axis
     conversion), so results line up with the input file. A micro-mesh glTF (one with

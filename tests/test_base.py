@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 
 from core import primitives
 from core.base import BaseError, build_base, decimate, topology
-from core.meshio import read_mesh
+from core.io.mesh_files import read_mesh
 from core.mesh import TriMesh
 from core.metrics import triangle_isotropy
 from tests.conftest import mesh_path

@@ -69,7 +69,7 @@ def test_batch_over_a_folder(inputs, tmp_path):
     from micromesh_path import ensure_package
 
     ensure_package()
-    from micromesh.core.meshio import read_mesh
+    from micromesh.core.io.mesh_files import read_mesh
 
     from micromesh.core.io.micromesh_import import read_micromesh
 

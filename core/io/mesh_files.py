@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .mesh import MeshError, TriMesh
+from ..mesh import MeshError, TriMesh
 
 
 class MeshFileError(ValueError):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from conftest import MESHES, mesh_path
-from core.meshio import MeshFileError, read_mesh, write_ply
+from core.io.mesh_files import MeshFileError, read_mesh, write_ply
 
 CUBE_V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
                    [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], dtype=np.float64)
