@@ -74,7 +74,7 @@ class Reparameterized:
     """A geometry tensor x held as x̄ = (I + λL) x; :meth:`value` solves it back (differentiably).
 
     With ``solver=None`` it is the identity (x̄ = x): the ablation without reparameterisation.
-    ``solver`` is a :class:`core.laplacian.ScreenedSolver` for (I + λL).
+    ``solver`` is a :class:`core.screened.ScreenedSolver` for (I + λL).
     """
 
     def __init__(self, value: np.ndarray, solver=None, dtype=torch.float32, device="cpu"):

@@ -303,7 +303,7 @@ def test_fixed_levels_bad_input(scene):
 
 
 def test_large_micro_laplacians_use_cg(scene, monkeypatch):
-    import core.laplacian as lap
+    import core.screened as lap
 
     ref, base = scene
     s = small(iterations=10, subdivide_at=(3,), max_level=1, compute_metrics=False)

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import torch
 
-from core.laplacian import (LaplacianError, ScreenedSolver, cotangent_laplacian, from_mesh,
-                            uniform_laplacian)
+from core.laplacian import LaplacianError, cotangent_laplacian, uniform_laplacian
+from core.screened import ScreenedSolver, from_mesh
 
 
 def _octahedron():
@@ -88,7 +88,7 @@ def test_bad_input():
 
 
 def test_auto_uses_splu_for_small_and_cg_for_large(monkeypatch):
-    import core.laplacian as lap
+    import core.screened as lap
 
     v, f = _bumpy(1)
     assert from_mesh(len(v), f, 9.0).method == "splu"

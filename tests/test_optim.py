@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 import torch
 
-from core.laplacian import ScreenedSolver, uniform_laplacian
+from core.laplacian import uniform_laplacian
+from core.screened import ScreenedSolver
 from core.optim import Reparameterized, UniformAdam, clip_gradients
 
 TET_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])

@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..laplacian import ScreenedSolver, uniform_laplacian
+from ..laplacian import uniform_laplacian
+from ..screened import ScreenedSolver
 from ..losses import scipy_to_torch_sparse, vertex_groups
 from ..mesh import TriMesh
 from ..micromesh import MicroMesh
