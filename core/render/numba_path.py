@@ -12,6 +12,7 @@ import torch
 
 from . import antialias as aa
 from . import shade as sk
+from . import silhouette
 from .normals import vertex_normals_numba
 from .raster import edge_flags_numba, rasterize_numba
 from .sh import SH_QUADRATIC
@@ -63,7 +64,7 @@ def _codes(verts: np.ndarray, f: np.ndarray, m: np.ndarray, raster: Raster, vt: 
     flags = flags.numpy() if flags is not None else edge_flags_numba(vt, faces, raster.mvp, raster.tri_id)
     code_h = np.empty(t.shape, np.int32)
     code_v = np.empty(t.shape, np.int32)
-    aa.pair_codes(verts, f, face_neighbours_int32(faces), m, t, _np(raster.depth), flags, code_h, code_v)
+    silhouette.pair_codes(verts, f, face_neighbours_int32(faces), m, t, _np(raster.depth), flags, code_h, code_v)
     return code_h, code_v
 
 

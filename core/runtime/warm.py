@@ -19,7 +19,7 @@ import time
 from typing import Callable
 
 # Its index file exists once the kernels are cached: the last kernel a construction compiles
-_SENTINEL = ("render.antialias", "pair_codes")
+_SENTINEL = ("render.silhouette", "pair_codes")
 
 
 def warm(progress: Callable[[str], None] | None = None) -> float:
