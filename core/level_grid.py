@@ -44,7 +44,8 @@ def umajor_index(u, v, level: int):
 
 
 @lru_cache(maxsize=None)
-def _level_grid(level: int) -> np.ndarray:
+def level_grid_view(level: int) -> np.ndarray:
+    """:func:`level_grid` cached and read-only, the level not checked (for hot loops)."""
     s = 1 << level
     u = np.repeat(np.arange(s + 1, dtype=np.int64), s + 1 - np.arange(s + 1))
     v = np.arange(len(u), dtype=np.int64) - umajor_index(u, 0, level)
@@ -56,7 +57,7 @@ def _level_grid(level: int) -> np.ndarray:
 def level_grid(level: int) -> np.ndarray:
     """(n, 2) integer (u, v) of the micro-vertices of a level, in u-major order."""
     _check_level(level)
-    return _level_grid(int(level)).copy()
+    return level_grid_view(int(level)).copy()
 
 
 def barycentric_weights(level: int) -> np.ndarray:
@@ -67,9 +68,10 @@ def barycentric_weights(level: int) -> np.ndarray:
 
 
 @lru_cache(maxsize=None)
-def _level_triangles(level: int) -> np.ndarray:
+def level_triangles_view(level: int) -> np.ndarray:
+    """:func:`level_triangles` cached and read-only, the level not checked."""
     s = 1 << level
-    g = _level_grid(level)
+    g = level_grid_view(level)
     up = g[g.sum(1) <= s - 1]
     fl = g[g.sum(1) <= s - 2]
     u, v = up[:, 0], up[:, 1]
@@ -90,7 +92,7 @@ def level_triangles(level: int) -> np.ndarray:
     corner), then the flipped ones (u+1, v), (u+1, v+1), (u, v+1).
     """
     _check_level(level)
-    return _level_triangles(int(level)).copy()
+    return level_triangles_view(int(level)).copy()
 
 
 @lru_cache(maxsize=None)
@@ -146,7 +148,7 @@ def _edge_locals(level: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     e2 = umajor_index(0, s - k, level)      # u = 0, from V to W: k = s - v
     edges = np.stack([e0, e1, e2]) if s > 1 else np.zeros((3, 0), dtype=np.int64)
     corners = np.array([0, umajor_index(s, 0, level), umajor_index(0, s, level)], dtype=np.int64)
-    g = _level_grid(level)
+    g = level_grid_view(level)
     w = s - g[:, 0] - g[:, 1]
     interior = np.flatnonzero((g[:, 0] > 0) & (g[:, 1] > 0) & (w > 0)).astype(np.int64)
     return edges, corners, interior
@@ -161,7 +163,8 @@ def _snapped_k(level: int) -> np.ndarray:
 
 
 @lru_cache(maxsize=None)
-def _snap_targets(level: int, flags: int) -> np.ndarray:
+def snap_targets_view(level: int, flags: int) -> np.ndarray:
+    """:func:`snap_targets` cached and read-only, the arguments not checked."""
     s = 1 << level
     out = np.arange(n_micro_vertices(level), dtype=np.int64)
     if s == 1:
@@ -180,7 +183,7 @@ def snap_targets(level: int, flags: int) -> np.ndarray:
     """(n,) local u-major index each micro-vertex of a face stands for after edge decimation
     with the given flags (itself where not snapped)."""
     _check_level(level)
-    return _snap_targets(int(level), int(flags) & 7).copy()
+    return snap_targets_view(int(level), int(flags) & 7).copy()
 
 
 def _check_level(level) -> None:

@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .mesh import TriMesh
-from .level_grid import (BUILD_MAX_LEVEL, MAX_LEVEL, LevelError, _level_grid, _level_triangles,
-                         _snap_targets, bird_order)
-from .microtopology import (MicroTopology, _as_levels, balance_levels, build_topology,
+from .level_grid import BUILD_MAX_LEVEL, MAX_LEVEL, LevelError, bird_order
+from .micro_locate import locate
+from .microtopology import (MicroTopology, as_levels, balance_levels, build_topology,
                             count_micro_vertices, is_balanced)
 
 
@@ -54,7 +54,7 @@ class MicroMesh:
         if not np.isfinite(d).all():
             raise MicroMeshError("directions contain NaN or infinity")
         try:
-            lv = _as_levels(self.base, self.levels)
+            lv = as_levels(self.base, self.levels)
         except LevelError as e:
             raise MicroMeshError(str(e)) from None
         if not is_balanced(self.base, lv):
@@ -134,7 +134,7 @@ class MicroMesh:
         ``bary`` is (w, u, v) in base face ``faces``. Near decimated edges the snapped
         (actual) micro-triangles are used, so the weights reproduce the point exactly.
         """
-        return _locate(self.topology, np.asarray(faces, np.int64), np.asarray(bary, float))
+        return locate(self.topology, np.asarray(faces, np.int64), np.asarray(bary, float))
 
     def surface_at(self, faces: np.ndarray, bary: np.ndarray) -> np.ndarray:
         """(q, 3) points of the displaced piecewise-linear surface at base barycentrics."""
@@ -150,7 +150,7 @@ class MicroMesh:
     def resampled(self, levels) -> tuple["MicroMesh", np.ndarray]:
         """:meth:`with_levels`, and a mask over the new micro-vertices: True where the vertex
         was a micro-vertex before (it keeps its value exactly), False where it is new."""
-        lv = _as_levels(self.base, levels)
+        lv = as_levels(self.base, levels)
         if not is_balanced(self.base, lv):
             raise MicroMeshError("with_levels needs balanced levels (use balance_levels)")
         if np.array_equal(lv, self.levels):
@@ -183,7 +183,7 @@ class MicroMesh:
         sel = sel[sel >= nb]
         if len(sel) == 0:
             return out, kept
-        idx, w = _locate(self.topology, topo.vertex_face[sel], topo.vertex_bary[sel])
+        idx, w = locate(self.topology, topo.vertex_face[sel], topo.vertex_bary[sel])
         old = self.micro_vertex_positions()
         X = np.einsum("qk,qkc->qc", w, old[idx])
         P = topo.interp[sel] @ self.base.vertices
@@ -215,56 +215,3 @@ class MicroMesh:
             base = t.face_vertex_ptr[fl][:, None]
             perm[(base + np.arange(len(bo))).reshape(-1)] = (base + bo[None, :]).reshape(-1)
         return t.face_vertex_ptr.copy(), self.displacements[t.face_vertex_idx[perm]]
-
-
-def _locate(topo: MicroTopology, faces: np.ndarray, bary: np.ndarray
-            ) -> tuple[np.ndarray, np.ndarray]:
-    """See :meth:`MicroMesh.locate`."""
-    L = topo.levels[faces]
-    S = (1 << L).astype(np.int64)
-    U, V = bary[:, 1] * S, bary[:, 2] * S
-    iu = np.clip(np.floor(U).astype(np.int64), 0, S - 1)
-    iv = np.clip(np.floor(V).astype(np.int64), 0, S - 1 - iu)
-    fu, fv = U - iu, V - iv
-    up = (fu + fv <= 1.0) | (iu + iv == S - 1)
-    s2 = S + 2
-    def um(u, v):
-        return u * s2 - u * (u + 1) // 2 + v
-    loc = np.where(up[:, None],
-                   np.stack([um(iu, iv), um(iu + 1, iv), um(iu, iv + 1)], 1),
-                   np.stack([um(iu + 1, iv), um(iu + 1, iv + 1), um(iu, iv + 1)], 1))
-    w = np.where(up[:, None], np.stack([1 - fu - fv, fu, fv], 1),
-                 np.stack([1 - fv, fu + fv - 1, 1 - fu], 1))
-
-    # Faces with decimated edges: where the grid triangle touches a snapped vertex, search
-    # the snapped micro-triangles of that strip instead.
-    flags = topo.flags[faces].astype(np.int64)
-    for level in range(1, MAX_LEVEL + 1):
-        for fg in range(1, 8):
-            grp = np.flatnonzero((L == level) & (flags == fg))
-            if len(grp) == 0:
-                continue
-            tgt = _snap_targets(level, fg)
-            moved = tgt != np.arange(len(tgt))
-            grp = grp[moved[loc[grp]].any(1)]
-            if len(grp) == 0:
-                continue
-            lt = _level_triangles(level)
-            st = tgt[lt]
-            cand = moved[lt].any(1) & (st[:, 0] != st[:, 1]) & (st[:, 1] != st[:, 2]) & \
-                (st[:, 2] != st[:, 0])
-            lt, st = lt[cand], st[cand]
-            g = _level_grid(level).astype(float)
-            a, b, c = g[st[:, 0]], g[st[:, 1]], g[st[:, 2]]  # (c, 2) snapped corners
-            p = np.stack([U[grp], V[grp]], 1)[:, None, :]    # (q, 1, 2)
-            e1, e2, r = b - a, c - a, p - a
-            det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-            l1 = (r[..., 0] * e2[:, 1] - r[..., 1] * e2[:, 0]) / det
-            l2 = (e1[:, 0] * r[..., 1] - e1[:, 1] * r[..., 0]) / det
-            l0 = 1 - l1 - l2
-            best = np.minimum(np.minimum(l0, l1), l2).argmax(1)
-            rows = np.arange(len(grp))
-            loc[grp] = lt[best]
-            w[grp] = np.stack([l0[rows, best], l1[rows, best], l2[rows, best]], 1)
-    idx = topo.face_vertex_idx[topo.face_vertex_ptr[faces][:, None] + loc]
-    return idx, w

@@ -11,13 +11,14 @@ import numpy as np
 import scipy.sparse as sp
 
 from .level_grid import (  # noqa: F401  (the per-level API, imported from here too)
-    BUILD_MAX_LEVEL, MAX_LEVEL, LevelError, _edge_locals, _level_grid, _level_triangles,
-    _snap_targets, _snapped_k, barycentric_weights, bird_index, bird_order, level_grid,
+    BUILD_MAX_LEVEL, MAX_LEVEL, LevelError, _edge_locals, level_grid_view, level_triangles_view,
+    snap_targets_view, _snapped_k, barycentric_weights, bird_index, bird_order, level_grid,
     level_triangles, n_micro_triangles, n_micro_vertices, snap_targets, umajor_index)
 from .mesh import TriMesh
 
 # -------------------------------------------------------------------------- mesh level
-def _as_levels(mesh: TriMesh, levels) -> np.ndarray:
+def as_levels(mesh: TriMesh, levels) -> np.ndarray:
+    """``levels`` (a scalar or one per face) as an (n_faces,) int64 array; shape checked."""
     lv = np.asarray(levels)
     if lv.ndim == 0:
         lv = np.full(mesh.n_faces, lv)
@@ -38,7 +39,7 @@ def _edge_min_max(mesh: TriMesh, lv: np.ndarray) -> tuple[np.ndarray, np.ndarray
 def balance_levels(mesh: TriMesh, levels) -> np.ndarray:
     """Clamp to 0..5, then raise the lower side until faces sharing an edge (all faces of a
     non-manifold edge) differ by at most one level. Never lowers a (clamped) level."""
-    lv = np.clip(_as_levels(mesh, levels), 0, MAX_LEVEL)
+    lv = np.clip(as_levels(mesh, levels), 0, MAX_LEVEL)
     fe = mesh.face_edges
     while True:
         _, emax = _edge_min_max(mesh, lv)
@@ -49,7 +50,7 @@ def balance_levels(mesh: TriMesh, levels) -> np.ndarray:
 
 
 def is_balanced(mesh: TriMesh, levels) -> bool:
-    lv = _as_levels(mesh, levels)
+    lv = as_levels(mesh, levels)
     if lv.min() < 0 or lv.max() > MAX_LEVEL:
         return False
     emin, emax = _edge_min_max(mesh, lv)
@@ -58,7 +59,7 @@ def is_balanced(mesh: TriMesh, levels) -> bool:
 
 def edge_flags(mesh: TriMesh, levels) -> np.ndarray:
     """(nf,) uint8: bit i set ⇔ a face across edge i has a level one lower."""
-    lv = _as_levels(mesh, levels)
+    lv = as_levels(mesh, levels)
     emin, _ = _edge_min_max(mesh, lv)
     low = emin[mesh.face_edges] == lv[:, None] - 1
     return (low[:, 0] * 1 + low[:, 1] * 2 + low[:, 2] * 4).astype(np.uint8)
@@ -70,7 +71,7 @@ def _edge_levels(mesh: TriMesh, lv: np.ndarray) -> np.ndarray:
 
 def count_micro_vertices(mesh: TriMesh, levels) -> int:
     """Size of the canonical micro-vertex index space (without building it)."""
-    lv = _as_levels(mesh, levels)
+    lv = as_levels(mesh, levels)
     s_e = 1 << _edge_levels(mesh, lv)
     s_f = 1 << lv
     return int(mesh.n_vertices + (s_e - 1).sum() + ((s_f - 1) * (s_f - 2) // 2).sum())
@@ -118,7 +119,7 @@ class MicroTopology:
 
 def build_topology(mesh: TriMesh, levels) -> MicroTopology:
     """Build the canonical micro-vertex space; levels must already be balanced."""
-    lv = _as_levels(mesh, levels)
+    lv = as_levels(mesh, levels)
     if lv.min() < 0 or lv.max() > MAX_LEVEL:
         raise LevelError(f"subdivision levels must lie in 0..{MAX_LEVEL}")
     emin, emax = _edge_min_max(mesh, lv)
@@ -190,7 +191,7 @@ def build_topology(mesh: TriMesh, levels) -> MicroTopology:
         vertex_bary[gk] = np.broadcast_to(barycentric_weights(level)[None], (m, n_l, 3))[keep]
         np.maximum.at(vertex_level, glob.reshape(-1), level)
 
-        lt = _level_triangles(level)
+        lt = level_triangles_view(level)
         t = glob[:, lt]  # (m, 4^l, 3)
         ok = (t[..., 0] != t[..., 1]) & (t[..., 1] != t[..., 2]) & (t[..., 2] != t[..., 0])
         tri_parts.append(t[ok])
