@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..runtime.jit import kernel
-from .shade import add_vertex_grad
+from .pixel import add_vertex_grad
 from .silhouette import screen
 
 

@@ -12,7 +12,7 @@ import torch
 
 from . import antialias as aa
 from . import shade as sk
-from . import silhouette
+from . import silhouette, slots
 from .normals import vertex_normals_numba
 from .raster import edge_flags_numba, rasterize_numba
 from .sh import SH_QUADRATIC
@@ -50,10 +50,10 @@ class _Shade(torch.autograd.Function):
             return None, None, None, None, None, None
         pv = ctx.pv
         width = 6 if has_vn else 3
-        g = sk.slot_buffer("shade", len(pv), pv.dtype, width)
+        g = slots.slot_buffer("shade", len(pv), pv.dtype, width)
         sk.shade_backward(pv, faces_int32(faces), pv, 3 if has_vn else 0, _np(mvp), _np(tri), mode,
                           _QA, _QB, _QK, _np(gout.to(dtype)), g, g)
-        total = torch.from_numpy(sk.reduce(g))
+        total = torch.from_numpy(slots.reduce(g))
         return total[:, :3], (total[:, 3:] if has_vn else None), None, None, None, None
 
 
@@ -93,13 +93,13 @@ class _Antialias(torch.autograd.Function):
         faces, m, code_h, code_v, sign, count = ctx.stuff
         c, v = _np(color), _np(verts)
         gcolor = np.empty_like(c)
-        gv = sk.slot_buffer("aa_v", len(v), v.dtype)
+        gv = slots.slot_buffer("aa_v", len(v), v.dtype)
         if sign is not None:
             g, scale = sign, float(gout) / count
         else:
             g, scale = _np(gout.to(color.dtype)), 1.0
         aa.antialias_backward(c, v, faces_int32(faces), m, code_h, code_v, g, scale, gcolor, gv)
-        return torch.from_numpy(gcolor), torch.from_numpy(sk.reduce(gv)), None, None, None
+        return torch.from_numpy(gcolor), torch.from_numpy(slots.reduce(gv)), None, None, None
 
 
 class _L1(torch.autograd.Function):

@@ -6,9 +6,7 @@ analytic backward.
 Barycentrics are recomputed from the vertex positions (so they carry gradients, as in
 nvdiffrast's rasterize backward): with clip coordinates (x_i, y_i, w_i) of the face's vertices and
 pixel NDC (x, y), u_i = x_i - x w_i, t_i = y_i - y w_i, beta_i = u_j t_k - u_k t_j (i, j, k cyclic)
-and b_i = beta_i / sum(beta). The backward scatters vertex gradients into K per-slot buffers
-(slot k owns the k-th contiguous block of image rows), summed in a fixed order: results do not depend on the number
-of threads and no two threads ever write the same memory.
+and b_i = beta_i / sum(beta). The backward scatters vertex gradients into per-slot buffers (:mod:`core.render.slots`).
 """
 from __future__ import annotations
 
@@ -19,55 +17,12 @@ from numba import njit, prange
 
 from ..runtime.jit import kernel
 from .geometry import NORMAL_EPS
+from .pixel import add_vertex_grad, bary, bary_backward, clip_xyw
 from .prefetch import ahead
 
 MODE_SHADED, MODE_NORMAL, MODE_DEPTH, MODE_MASK, MODE_FLAT = 0, 1, 2, 3, 4
 MODES = {"shaded": MODE_SHADED, "normal": MODE_NORMAL, "depth": MODE_DEPTH, "mask": MODE_MASK,
          "flat": MODE_FLAT}
-SLOTS = 8
-"""Gradient accumulation slots (fixed, so results are independent of the thread count)."""
-_TINY = 1e-300
-
-
-@njit(inline="always")
-def clip_xyw(verts, m, i):
-    vx, vy, vz = np.float64(verts[i, 0]), np.float64(verts[i, 1]), np.float64(verts[i, 2])
-    return (m[0, 0] * vx + m[0, 1] * vy + m[0, 2] * vz + m[0, 3],
-            m[1, 0] * vx + m[1, 1] * vy + m[1, 2] * vz + m[1, 3],
-            m[3, 0] * vx + m[3, 1] * vy + m[3, 2] * vz + m[3, 3])
-
-
-@njit(inline="always")
-def bary(x0, y0, w0, x1, y1, w1, x2, y2, w2, x, y):
-    u0, u1, u2 = x0 - x * w0, x1 - x * w1, x2 - x * w2
-    t0, t1, t2 = y0 - y * w0, y1 - y * w1, y2 - y * w2
-    s0 = u1 * t2 - u2 * t1
-    s1 = u2 * t0 - u0 * t2
-    s2 = u0 * t1 - u1 * t0
-    s = s0 + s1 + s2
-    if abs(s) < _TINY:
-        s = _TINY
-    inv = 1.0 / s
-    return s0 * inv, s1 * inv, s2 * inv, s, u0, u1, u2, t0, t1, t2
-
-
-@njit(inline="always")
-def bary_backward(g0, g1, g2, b0, b1, b2, s, u0, u1, u2, t0, t1, t2):
-    gs = g0 * b0 + g1 * b1 + g2 * b2
-    h0, h1, h2 = (g0 - gs) / s, (g1 - gs) / s, (g2 - gs) / s
-    gu0 = h2 * t1 - h1 * t2
-    gu1 = h0 * t2 - h2 * t0
-    gu2 = h1 * t0 - h0 * t1
-    gt0 = h1 * u2 - h2 * u1
-    gt1 = h2 * u0 - h0 * u2
-    gt2 = h0 * u1 - h1 * u0
-    return gu0, gu1, gu2, gt0, gt1, gt2
-
-
-@njit(inline="always")
-def add_vertex_grad(buf, i, m, gx, gy, gw):
-    for j in range(3):
-        buf[i, j] += m[0, j] * gx + m[1, j] * gy + m[3, j] * gw
 
 
 @njit(inline="always")
@@ -139,39 +94,6 @@ def _flat_backward(verts, i0, i1, i2, qa, qb, g0, g1, g2, gv):
     gv[i0, 0] -= pa0 + pb0
     gv[i0, 1] -= pa1 + pb1
     gv[i0, 2] -= pa2 + pb2
-
-
-@kernel(parallel=True)
-def reduce_slots(buf, out):
-    """out (N, C) <- buf (K, N, C) summed over slots in slot order (deterministic)."""
-    for i in prange(buf.shape[1]):
-        for j in range(buf.shape[2]):
-            s = 0.0
-            for k in range(buf.shape[0]):
-                s += buf[k, i, j]
-            out[i, j] = s
-    return 0
-
-
-_POOL: dict = {}
-
-
-def slot_buffer(name: str, n: int, dtype, width: int = 3) -> np.ndarray:
-    """A reused (SLOTS, n, width) scratch array (the kernels zero their own slot): saves page
-    faults on every backward."""
-    key = (name, n, width, np.dtype(dtype).str)
-    buf = _POOL.get(key)
-    if buf is None:
-        for k in [k for k in _POOL if k[0] == name]:
-            del _POOL[k]
-        buf = _POOL[key] = np.empty((SLOTS, n, width), dtype=dtype)
-    return buf
-
-
-def reduce(buf: np.ndarray) -> np.ndarray:
-    out = np.empty(buf.shape[1:], dtype=buf.dtype)
-    reduce_slots(buf, out)
-    return out
 
 
 @kernel(parallel=True, fastmath={"contract", "arcp"})

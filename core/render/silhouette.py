@@ -21,8 +21,8 @@ import numpy as np
 from numba import njit, prange
 
 from ..runtime.jit import kernel
+from .pixel import clip_xyw
 from .prefetch import ahead
-from .shade import clip_xyw
 
 
 @njit(inline="always")
