@@ -18,7 +18,8 @@ import numpy as np
 from _common import MESHES, icosphere, median_time, noisy_sphere, parser, print_table, timed, write_json
 from core import bake as bake_mod
 from core.bake import SOURCE_NEAREST, bake_displacements, nearest_points
-from core.mesh import TriMesh, unit_sphere_normalization
+from core.mesh import TriMesh
+from core.normalization import unit_sphere_normalization
 from core.runtime.threads import set_threads
 
 

@@ -19,7 +19,8 @@ from _common import MESHES, ROOT, parser, print_table, write_json
 from core.base import build_base, topology
 from core.base.build import welded
 from core.closest import ClosestPointIndex
-from core.mesh import TriMesh, unit_sphere_normalization
+from core.mesh import TriMesh
+from core.normalization import unit_sphere_normalization
 from core.io.mesh_files import read_mesh
 from core.metrics import isotropy
 

@@ -22,7 +22,8 @@ from scipy.spatial import cKDTree
 from _common import MESHES, noisy_sphere, parser, print_table, timed, write_json
 from core.bake import closest_points_on_triangles
 from core.closest import ClosestPointIndex
-from core.mesh import TriMesh, unit_sphere_normalization
+from core.mesh import TriMesh
+from core.normalization import unit_sphere_normalization
 from core.runtime.threads import set_threads
 
 

@@ -12,7 +12,8 @@ import bpy
 import numpy as np
 
 from ..core.cameras import Cameras, cameras_from_poses, fibonacci_sphere, look_at, supplement_up
-from ..core.mesh import TriMesh, unit_sphere_normalization
+from ..core.mesh import TriMesh
+from ..core.normalization import unit_sphere_normalization
 
 COLLECTION = "MicroMesh Cameras"
 

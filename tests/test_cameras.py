@@ -89,7 +89,7 @@ def test_scene_cameras_see_the_whole_object_at_any_scale(radius):
 
     from core import primitives
     from core.construct.frame import unit_cameras
-    from core.mesh import unit_sphere_normalization
+    from core.normalization import unit_sphere_normalization
     from core.render import render
     from core.settings import preset
 

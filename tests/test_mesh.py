@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from shapes import torus
-from core.mesh import MeshError, TriMesh, unit_sphere_normalization
+from core.mesh import MeshError, TriMesh
+from core.normalization import unit_sphere_normalization
 
 
 def tetrahedron() -> TriMesh:

@@ -14,7 +14,7 @@ import micromesh_path  # noqa: E402
 micromesh_path.ensure_package()
 from micromesh.core.construct.frame import unit_cameras  # noqa: E402
 from micromesh.core.construct.views import view_coverage  # noqa: E402
-from micromesh.core.mesh import unit_sphere_normalization  # noqa: E402
+from micromesh.core.normalization import unit_sphere_normalization  # noqa: E402
 from micromesh.core.settings import preset  # noqa: E402
 from micromesh.operators import bl_mesh, cameras_io, writeback  # noqa: E402
 

@@ -19,7 +19,8 @@ from typing import Callable
 import numpy as np
 
 from ..closest import ClosestPointIndex
-from ..mesh import TriMesh, unit_sphere_normalization
+from ..mesh import TriMesh
+from ..normalization import unit_sphere_normalization
 from ..metrics import isotropy
 from ..settings import ConstructSettings
 from .decimate import decimate

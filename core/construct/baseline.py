@@ -9,7 +9,8 @@ import numpy as np
 
 from ..bounds import baked, tight_bounds, unit_bounds
 from ..losses import mean_edge_length
-from ..mesh import TriMesh, unit_sphere_normalization
+from ..mesh import TriMesh
+from ..normalization import unit_sphere_normalization
 from ..metrics import PhaseTimer
 from ..micromesh import MicroMesh
 from ..settings import ConstructSettings, preset

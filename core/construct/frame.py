@@ -12,7 +12,8 @@ from ..base import DecimateCancelled, base_for, differences, topology
 from ..base.build import welded
 from ..bounds import DirectionBounds
 from ..cameras import Cameras, fibonacci_cameras
-from ..mesh import Normalization, TriMesh
+from ..mesh import TriMesh
+from ..normalization import Normalization
 from ..micromesh import MicroMesh
 from ..microtopology import balance_levels
 from ..orient import orient

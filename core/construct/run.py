@@ -19,7 +19,8 @@ from ..cameras import Cameras
 from ..lod import effective_micro_triangles
 from ..losses import mean_edge_length
 from ..runtime.memory import keep_large_allocations, release_memory
-from ..mesh import TriMesh, unit_sphere_normalization
+from ..mesh import TriMesh
+from ..normalization import unit_sphere_normalization
 from ..micromesh import MicroMesh
 from ..render import warm_up
 from ..settings import ConstructSettings

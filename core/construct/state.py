@@ -9,7 +9,8 @@ import numpy as np
 
 from ..cameras import Cameras
 from ..lod import effective_micro_triangles
-from ..mesh import Normalization, TriMesh
+from ..mesh import TriMesh
+from ..normalization import Normalization
 from ..metrics import PhaseTimer, storage_bytes
 from ..settings import ConstructSettings
 from .scene import Scene

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..bounds import DirectionBounds
-from ..mesh import Normalization
+from ..normalization import Normalization
 from ..micromesh import MicroMesh
 from ..settings import ConstructSettings
 
