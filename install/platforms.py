@@ -18,13 +18,17 @@ class Platform:
     """``tags``: pip's platform tags of its wheels; ``env``: the marker environment (what
     ``sys.platform``, ``platform.machine()`` and the Darwin release say there);
     ``blocker``: why it is not supported ("" where it is), and ``blocked_by``: a requirement
-    that has no wheel there (the test checks that it still has none)."""
+    that has no wheel there (the test checks that it still has none); ``download_mb``: what
+    Install Dependencies downloads there with the CPU torch, ``cuda_download_mb`` with the CUDA
+    build where it differs (``bench/install_sizes.py``; the README's table)."""
 
     name: str
     tags: tuple[str, ...]
     env: dict = field(default_factory=dict)
     blocker: str = ""
     blocked_by: str = ""
+    download_mb: int = 0
+    cuda_download_mb: int = 0
 
     @property
     def supported(self) -> bool:
@@ -44,10 +48,13 @@ _LINUX_X64 = ("manylinux_2_28_x86_64", "manylinux_2_17_x86_64", "manylinux2014_x
 _LINUX_ARM = ("manylinux_2_28_aarch64", "manylinux_2_17_aarch64", "manylinux2014_aarch64")
 
 PLATFORMS = (
-    Platform("Linux x86-64", _LINUX_X64, _env("linux", "x86_64", "6.8.0")),
-    Platform("Windows x64", ("win_amd64",), _env("win32", "AMD64", "10")),
-    Platform("macOS 14+ Apple silicon", ("macosx_14_0_arm64",), _env("darwin", "arm64", "23.0.0")),
-    Platform("macOS 13 Apple silicon", ("macosx_13_0_arm64",), _env("darwin", "arm64", "22.0.0")),
+    Platform("Linux x86-64", _LINUX_X64, _env("linux", "x86_64", "6.8.0"), download_mb=360,
+             cuda_download_mb=2900),
+    Platform("Windows x64", ("win_amd64",), _env("win32", "AMD64", "10"), download_mb=260),
+    Platform("macOS 14+ Apple silicon", ("macosx_14_0_arm64",), _env("darwin", "arm64", "23.0.0"),
+             download_mb=230),
+    Platform("macOS 13 Apple silicon", ("macosx_13_0_arm64",), _env("darwin", "arm64", "22.0.0"),
+             download_mb=200),
     Platform("macOS 11-12 Apple silicon", ("macosx_12_0_arm64",), _env("darwin", "arm64", "21.0.0"),
              blocker="Embree's Python binding (embreex) has no wheel before macOS 13",
              blocked_by="embreex==4.4.0.post1"),

@@ -126,6 +126,14 @@ class MICROMESH_OT_cancel_install(bpy.types.Operator):
         return {"FINISHED"}
 
 
+def download_note(here, torch_build: str = "CPU") -> str:
+    """What Install Dependencies will download on this platform, in words (shown before it)."""
+    if torch_build == "CUDA" and here.cuda_download_mb:
+        return (f"About {here.cuda_download_mb / 1000:.1f} GB to download for {here.name} "
+                "(torch with CUDA and NVIDIA's libraries)")
+    return f"About {here.download_mb} MB to download for {here.name}"
+
+
 def draw_install(layout, prefs=None, offer: bool = True) -> None:
     """Install Dependencies where it can work: the running install's progress (with Cancel)
     or the last one's outcome, then (``offer``) the button (with ``prefs``: the torch build to
@@ -149,6 +157,8 @@ def draw_install(layout, prefs=None, offer: bool = True) -> None:
         return
     if prefs is not None:
         layout.prop(prefs, "torch_build")
+    if here is not None and here.download_mb:
+        layout.label(text=download_note(here, getattr(prefs, "torch_build", "CPU")))
     layout.operator("micromesh.install_dependencies", icon="IMPORT")
     if prefs is not None:
         layout.label(text="Log: " + deps.log_path())

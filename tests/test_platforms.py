@@ -51,3 +51,27 @@ def test_this_machine_and_the_markers():
     torch = list(deps.REQUIREMENTS["torch"])
     assert platforms.requirements_for(torch, mac13.env) == ["torch==2.11.0"]
     assert platforms.requirements_for(torch, platforms.PLATFORMS[0].env) == ["torch==2.13.0"]
+
+
+def test_each_supported_platform_states_its_download_as_the_readme_does():
+    import re
+
+    readme = (micromesh_path.ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+    for p in platforms.PLATFORMS:
+        assert (p.download_mb > 0) == p.supported, p.name
+        if not p.supported:
+            continue
+        row = next(line for line in readme if line.startswith(f"| {p.name}"))
+        stated = float(re.search(r"(\d+) MB", row.split("|")[3]).group(1))
+        assert abs(stated - p.download_mb) <= 0.05 * p.download_mb, (p.name, row)
+
+
+def test_the_panel_says_the_download_before_installing():
+    pytest.importorskip("bpy")
+    from micromesh.operators.install_op import download_note
+
+    linux = platforms.PLATFORMS[0]
+    assert download_note(linux) == "About 360 MB to download for Linux x86-64"
+    assert download_note(linux, "CUDA").startswith("About 2.9 GB to download")
+    win = next(p for p in platforms.PLATFORMS if p.name == "Windows x64")
+    assert download_note(win, "CUDA") == download_note(win)    # PyPI's Windows torch: CPU
