@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 from bpy.props import IntProperty
 
-from ..core.maps import Maps, bake_maps, transfer_texture, unit_directions
+from ..core.maps import Maps, bake_maps, transfer_textures, unit_directions
 from ..core.micromesh import MicroMesh
 from . import bl_mesh, job, source_texture, writeback
 from .images import image
@@ -109,14 +109,27 @@ def _material(name: str, normal: bpy.types.Image) -> bpy.types.Material:
     return mat
 
 
-def bake_with_texture(mm: MicroMesh, resolution: int, texture, progress, should_stop):
-    """(maps, the source's texture on their atlas or None): the worker's part of Bake Maps."""
+def bake_with_textures(mm: MicroMesh, resolution: int, textures, progress, should_stop):
+    """(maps, the source's textures on their atlas: one per ``textures.images``, or an empty
+    list): the worker's part of Bake Maps."""
     maps = bake_maps(mm, resolution, progress=progress, should_stop=should_stop)
-    color = None
-    if texture is not None:
+    carried = []
+    if textures is not None:
         progress({"phase": "texture", "iteration": 0, "total": 1})
-        color = transfer_texture(mm, maps, texture.mesh, texture.uv, texture.pixels)
-    return maps, color
+        carried = transfer_textures(mm, maps, textures.mesh, textures.uv,
+                                    [t.pixels for t in textures.images])
+    return maps, carried
+
+
+def carry_textures(obj, textures, carried: list) -> list:
+    """The carried textures as images of the maps object's material, each linked to the input
+    it fed in the source's, the source's constants copied; the images, in order."""
+    mat, made = obj.data.materials[0], []
+    source_texture.copy_constants(mat, textures)
+    for like, pixels in zip(textures.images, carried):
+        made.append(source_texture.make_image(f"{obj.name}_{like.slug}", pixels, like))
+        source_texture.link_input(mat, made[-1], like)
+    return made
 
 
 class MICROMESH_OT_bake_maps(bpy.types.Operator):
@@ -136,19 +149,18 @@ class MICROMESH_OT_bake_maps(bpy.types.Operator):
         out = writeback.load_outcome(res)
         src = res.micromesh_source
         self._result, self._mm = res, out.micromesh
-        self._texture = source_texture.read(src) if src is not None else None
-        return partial(bake_with_texture, out.micromesh, self.resolution, self._texture)
+        self._textures = source_texture.read(src) if src is not None else None
+        return partial(bake_with_textures, out.micromesh, self.resolution, self._textures)
 
     def _finish(self, context, baked):
-        maps, color = baked
+        maps, carried = baked
         src = self._result.micromesh_source or self._result
-        name = f"{src.name}_maps"
-        obj = maps_object(context, src, self._mm, maps, name)
+        obj = maps_object(context, src, self._mm, maps, f"{src.name}_maps")
         what = "height and normal maps"
-        if color is not None:
-            img = source_texture.make_image(f"{name}_basecolor", color, self._texture)
-            source_texture.link_base_color(obj.data.materials[0], img)
-            what += f", and '{src.name}''s texture carried onto their atlas"
+        if carried:
+            carry_textures(obj, self._textures, carried)
+            names = ", ".join(t.socket.lower() for t in self._textures.images)
+            what += f", and '{src.name}''s textures ({names}) carried onto their atlas"
         self.report({"INFO"}, f"{obj.name}: {self.resolution}² {what}")
         return {"FINISHED"}
 

@@ -35,31 +35,54 @@ def write_report(outcome, out) -> None:
                                                        indent=1))
 
 
+def gltf_textures(textures, carried: list) -> dict:
+    """The carried textures as glTF's material wants them: {"baseColorTexture": (R, R, 4),
+    "metallicRoughnessTexture": (R, R, 3) (roughness in green, metallic in blue; the other
+    one's constant where only one is textured), "emissiveTexture": (R, R, 3)}, where the
+    source has them."""
+    by = {t.socket: (t, c) for t, c in zip(textures.images, carried)}
+    out = {}
+    if "Base Color" in by:
+        out["baseColorTexture"] = by["Base Color"][1]
+    if "Metallic" in by or "Roughness" in by:
+        shape = next(c for t, c in by.values() if t.socket in ("Metallic", "Roughness")).shape
+        mr = np.ones(shape[:2] + (3,), np.float32)
+        for channel, socket in ((1, "Roughness"), (2, "Metallic")):
+            t, c = by.get(socket, (None, None))
+            mr[..., channel] = t.values(c) if t else textures.constants[socket]
+        out["metallicRoughnessTexture"] = mr
+    if "Emission Color" in by:
+        out["emissiveTexture"] = by["Emission Color"][1][..., :3]
+    return out
+
+
 def write_maps(context, outcome, source, resolution: int, out, progress) -> dict:
     """Height and normal maps: ``<source>_maps`` in the scene (images packed) and, for
     engines, ``NAME_height.exr``, ``NAME_normal.png`` (16-bit) and ``NAME_base.gltf`` (UVs,
-    normals, tangents, the normal map); where the source has a base-colour texture, it is
-    carried onto the atlas too (``NAME_basecolor.png``, the glTF's base colour); how well the
-    height map rebuilds the micro-mesh."""
+    normals, tangents, the normal map); where the source's material has textures, they are
+    carried onto the atlas too (base colour, metallic and roughness, emission: the glTF's
+    ``NAME_basecolor.png``, ``NAME_metallicroughness.png``, ``NAME_emissive.png``); how well
+    the height map rebuilds the micro-mesh."""
     import bpy
 
     mm, name = outcome.micromesh, out.name
     t = time.perf_counter()
-    texture = source_texture.read(source)
-    maps, color = maps_op.bake_with_texture(mm, resolution, texture, progress, lambda: False)
+    textures = source_texture.read(source)
+    maps, carried = maps_op.bake_with_textures(mm, resolution, textures, progress, lambda: False)
     obj = maps_op.maps_object(context, source, mm, maps, f"{source.name}_maps")
     img = images.image(f"{name}_height_file", maps.height, path=str(out.temp("_height.exr")))
     bpy.data.images.remove(img)
     out.temp("_normal.png").write_bytes(png(maps.normal))
-    color_uri = None
-    if color is not None:
-        tex = source_texture.make_image(f"{source.name}_maps_basecolor", color, texture)
-        source_texture.link_base_color(obj.data.materials[0], tex)
-        out.temp("_basecolor.png").write_bytes(png(np.clip(color, 0.0, 1.0), bits=8))
-        color_uri = f"{name}_basecolor.png"
+    uris = {}
+    if carried:
+        maps_op.carry_textures(obj, textures, carried)
+        for slot, pixels in gltf_textures(textures, carried).items():
+            suffix = "_" + slot.replace("Texture", "").lower() + ".png"
+            out.temp(suffix).write_bytes(png(np.clip(pixels, 0.0, 1.0), bits=8))
+            uris[slot] = name + suffix
     for path, data in base_gltf(out.final("_base.gltf"), mm, maps, f"{name}_normal.png",
                                 f"{name}_height.exr", y_up=export_y_up(source),
-                                base_color_uri=color_uri):
+                                textures=uris):
         out.temp(path.name[len(name):]).write_bytes(data)
     err = rebuild_error(mm, maps)
     return {"resolution": resolution, "time_s": time.perf_counter() - t,

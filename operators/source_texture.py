@@ -1,9 +1,10 @@
-"""The source's base-colour texture for Bake Maps: found in its material, read as an array
-with the UVs of its triangles, and the carried texture (``core.maps.transfer_texture``) made
-an image in the maps object's material, so the baked asset keeps its look."""
+"""The source's textures for Bake Maps: the images that feed its material's Principled BSDF
+(base colour, metallic, roughness, alpha, emission), read as arrays with the UVs of its
+triangles, and the carried textures (``core.maps.transfer_textures``) made images in the maps
+object's material, each linked to the input it fed, so the baked asset keeps its look."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import bpy
 import numpy as np
@@ -12,66 +13,117 @@ from ..core.mesh import TriMesh
 from . import bl_mesh
 from .images import image
 
+CARRIED = ("Base Color", "Metallic", "Roughness", "Alpha", "Emission Color")
+"""The Principled BSDF inputs whose image textures are carried. A normal map of the source is
+not: its tangent space is the source's UVs', and the maps object has its own normal map."""
+
+CONSTANTS = ("Metallic", "Roughness", "Emission Strength")
+"""Value inputs copied as they are where no texture feeds them (the emission's strength
+scales a carried emission colour)."""
+
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+"""Blender's weights when a colour output feeds a value input (scene-linear Rec. 709)."""
+
 
 @dataclass(eq=False)
-class SourceTexture:
-    """What the worker needs: the source surface (world space), its UVs per triangle corner,
-    the image's pixels (H, W, 4, row 0 at the bottom) and how to write the result."""
-    mesh: TriMesh
-    uv: np.ndarray
+class SourceImage:
+    """One textured input: ``socket`` (of the Principled BSDF), ``output`` (of the Image
+    Texture node: "Color" or "Alpha"), the image's pixels (H, W, 4, row 0 at the bottom)."""
+    socket: str
+    output: str
     pixels: np.ndarray
     colorspace: str
     is_float: bool
 
+    @property
+    def slug(self) -> str:
+        return self.socket.split()[0].lower() + ("color" if self.socket == "Base Color" else "")
 
-def base_color_image(obj: bpy.types.Object) -> bpy.types.Image | None:
-    """The image feeding a Principled BSDF's Base Color in the object's materials (directly
-    from an Image Texture node), else None."""
+    def values(self, carried: np.ndarray) -> np.ndarray:
+        """The scalar the input sees from a carried (R, R, 4) copy of this image: (R, R)."""
+        if self.output == "Alpha":
+            return carried[..., 3]
+        return carried[..., :3] @ LUMINANCE
+
+
+@dataclass(eq=False)
+class SourceTextures:
+    """What the worker needs: the source surface (world space), its UVs per triangle corner,
+    the textured inputs, and the values of :data:`CONSTANTS` in the source's material."""
+    mesh: TriMesh
+    uv: np.ndarray
+    images: list[SourceImage]
+    constants: dict = field(default_factory=dict)
+
+
+def _principled(obj: bpy.types.Object):
     for slot in obj.material_slots:
         mat = slot.material
         if mat is None or mat.node_tree is None:
             continue
         for node in mat.node_tree.nodes:
-            if node.type != "BSDF_PRINCIPLED":
-                continue
-            for link in node.inputs["Base Color"].links:
-                src = link.from_node
-                if src.type == "TEX_IMAGE" and src.image is not None and src.image.size[0] > 1:
-                    return src.image
+            if node.type == "BSDF_PRINCIPLED":
+                return node
     return None
 
 
-def read(obj: bpy.types.Object) -> SourceTexture | None:
-    """The source's base-colour texture and UVs, or None where it has either not."""
-    img = base_color_image(obj)
-    if img is None:
-        return None
-    uv = bl_mesh.mesh_uvs(obj)
+def textured_inputs(obj: bpy.types.Object) -> dict:
+    """{input name: (image, output name)} for the inputs of :data:`CARRIED` that an Image
+    Texture node feeds directly in the object's first Principled BSDF."""
+    bsdf, out = _principled(obj), {}
+    for name in CARRIED if bsdf is not None else ():
+        for link in bsdf.inputs[name].links:
+            src = link.from_node
+            if src.type == "TEX_IMAGE" and src.image is not None and src.image.size[0] > 1:
+                out[name] = (src.image, link.from_socket.name)
+    return out
+
+
+def read(obj: bpy.types.Object) -> SourceTextures | None:
+    """The source's textured inputs and UVs, or None where it has either not."""
+    found = textured_inputs(obj)
+    uv = bl_mesh.mesh_uvs(obj) if found else None
     if uv is None:
         return None
-    w, h = img.size
-    pixels = np.empty(w * h * 4, dtype=np.float32)
-    img.pixels.foreach_get(pixels)
-    return SourceTexture(bl_mesh.mesh_to_arrays(obj), uv, pixels.reshape(h, w, 4),
-                         img.colorspace_settings.name, bool(img.is_float))
+    images = []
+    for socket, (img, output) in found.items():
+        w, h = img.size
+        pixels = np.empty(w * h * 4, dtype=np.float32)
+        img.pixels.foreach_get(pixels)
+        images.append(SourceImage(socket, output, pixels.reshape(h, w, 4),
+                                  img.colorspace_settings.name, bool(img.is_float)))
+    bsdf = _principled(obj)
+    constants = {k: float(bsdf.inputs[k].default_value) for k in CONSTANTS}
+    return SourceTextures(bl_mesh.mesh_to_arrays(obj), uv, images, constants)
 
 
-def make_image(name: str, pixels: np.ndarray, like: SourceTexture) -> bpy.types.Image:
+def make_image(name: str, pixels: np.ndarray, like: SourceImage) -> bpy.types.Image:
     """An image of (H, W, 4) pixels in the source's colour space, packed into the ``.blend``
     (PNG, or OpenEXR for a float source)."""
     return image(name, np.clip(pixels, 0.0, None), colorspace=like.colorspace,
                  float_buffer=like.is_float)
 
 
-def link_base_color(mat: bpy.types.Material, image: bpy.types.Image) -> None:
-    """The image, through the maps' UVs, into the material's Principled BSDF Base Color."""
+def _bsdf(mat: bpy.types.Material):
     nodes = mat.node_tree.nodes
     bsdf = next((n for n in nodes if n.type == "BSDF_PRINCIPLED"), None)
-    if bsdf is None:
-        bsdf = nodes.new("ShaderNodeBsdfPrincipled")
+    return bsdf if bsdf is not None else nodes.new("ShaderNodeBsdfPrincipled")
+
+
+def copy_constants(mat: bpy.types.Material, textures: SourceTextures) -> None:
+    """The source's :data:`CONSTANTS` onto the material's Principled BSDF."""
+    bsdf = _bsdf(mat)
+    for name, value in textures.constants.items():
+        bsdf.inputs[name].default_value = value
+
+
+def link_input(mat: bpy.types.Material, image: bpy.types.Image, like: SourceImage) -> None:
+    """The image, through the maps' UVs, into the material's Principled BSDF input that the
+    source's image fed, from the same output."""
+    nodes, bsdf = mat.node_tree.nodes, _bsdf(mat)
     tex = nodes.new("ShaderNodeTexImage")
-    tex.image, tex.label = image, "Source texture on the atlas"
+    tex.image, tex.label = image, f"Source {like.socket.lower()} on the atlas"
     uv = nodes.new("ShaderNodeUVMap")
     uv.uv_map = "UVMap"
     mat.node_tree.links.new(uv.outputs["UV"], tex.inputs["Vector"])
-    mat.node_tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    mat.node_tree.links.new(tex.outputs[like.output], bsdf.inputs[like.socket])

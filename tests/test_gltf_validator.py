@@ -51,10 +51,15 @@ def test_exports_validate_without_errors_or_warnings(tmp_path):
     maps = bake_maps(mm, 64)                       # the maps path: base + UVs + normal map
     (tmp_path / "n.png").write_bytes(png(maps.normal))
     (tmp_path / "c.png").write_bytes(png(np.full((64, 64, 4), 0.5), bits=8))
-    for path, data in base_gltf(tmp_path / "base.gltf", mm, maps, "n.png", "h.exr",
-                                base_color_uri="c.png"):
-        path.write_bytes(data)
-    files.append(str(tmp_path / "base.gltf"))
+    (tmp_path / "mr.png").write_bytes(png(np.full((64, 64, 3), 0.5), bits=8))
+    (tmp_path / "e.png").write_bytes(png(np.full((64, 64, 3), 0.2), bits=8))
+    for name, textures in (("base", {"baseColorTexture": "c.png"}),
+                           ("textured", {"baseColorTexture": "c.png", "emissiveTexture": "e.png",
+                                         "metallicRoughnessTexture": "mr.png"})):
+        for path, data in base_gltf(tmp_path / f"{name}.gltf", mm, maps, "n.png", "h.exr",
+                                    textures=textures):
+            path.write_bytes(data)
+        files.append(str(tmp_path / f"{name}.gltf"))
     r = subprocess.run([node, str(SCRIPT), *files], capture_output=True, text=True,
                        timeout=120, env={"NODE_PATH": str(MODULES)})
     assert r.returncode == 0, r.stderr

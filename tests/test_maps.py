@@ -113,3 +113,12 @@ def test_the_source_texture_is_carried_onto_the_atlas(bumpy):
     assert np.median(err) < 0.005 and np.percentile(err, 99.9) < 0.02, np.percentile(err, [50, 99.9])
     with pytest.raises(TransferError):
         transfer_texture(flat, maps, src, uv[:-1], image)
+    # Several textures at once (base colour, a one-channel roughness): each as if alone.
+    from core.maps import transfer_textures
+
+    rough = image[..., 1]
+    both = transfer_textures(flat, maps, src, uv, [image, rough])
+    assert np.array_equal(both[0], color) and both[1].shape == (256, 256, 1)
+    assert np.array_equal(both[1][..., 0], color[..., 1])
+    with pytest.raises(TransferError):
+        transfer_textures(flat, maps, src, uv, [image, np.zeros((1, 8))])

@@ -156,9 +156,11 @@ def test_the_panel_shows_the_estimate(scene):
 
 
 def test_bake_maps_carries_the_source_texture_onto_the_atlas(scene):
-    """A source with UVs and an image in its material's Base Color: Bake Maps gives the maps
-    object that texture on its own atlas, linked to its Base Color; each texel holds the
-    colour the source shows at the texel's point."""
+    """A source with UVs, an image in its material's Base Color and another (non-colour
+    data) in its Roughness, and a Metallic value: Bake Maps gives the maps object those
+    textures on its own atlas, each linked to the input it fed, and the same Metallic; each
+    texel holds the colour the source shows at the texel's point. For engines the roughness
+    goes into glTF's metallic-roughness texture (green), the Metallic value beside it (blue)."""
     src = scene.micromesh.source
     me = src.data
     corner_vertex = np.empty(len(me.loops), np.int32)
@@ -181,6 +183,13 @@ def test_bake_maps_carries_the_source_texture_onto_the_atlas(scene):
     tex.image = img
     bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
     mat.node_tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    rough = bpy.data.images.new("rough", w, h)
+    rough.colorspace_settings.name = "Non-Color"
+    rough.pixels.foreach_set(np.repeat(pixels[..., 1:2], 4, -1).reshape(-1))   # grey: v
+    rtex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    rtex.image = rough
+    mat.node_tree.links.new(rtex.outputs["Color"], bsdf.inputs["Roughness"])
+    bsdf.inputs["Metallic"].default_value = 0.7
     src.data.materials.append(mat)
     assert bpy.ops.micromesh.construct(method="PROJECTION") == {"FINISHED"}
     assert bpy.ops.micromesh.bake_maps(resolution=128) == {"FINISHED"}
@@ -191,6 +200,22 @@ def test_bake_maps_carries_the_source_texture_onto_the_atlas(scene):
     carried = link.from_node.image
     assert carried.name == "rock_maps_basecolor" and carried.packed_file is not None
     assert carried.colorspace_settings.name == img.colorspace_settings.name
+    (rlink,) = bsdf.inputs["Roughness"].links
+    assert rlink.from_node.image.name == "rock_maps_roughness"
+    assert rlink.from_node.image.colorspace_settings.name == "Non-Color"
+    assert bsdf.inputs["Metallic"].default_value == pytest.approx(0.7)
+    from micromesh.operators import result_files, source_texture
+
+    textures = source_texture.read(src)
+    assert [t.socket for t in textures.images] == ["Base Color", "Roughness"]
+    size = rlink.from_node.image.size[0]
+    got_r = np.empty(size * size * 4, np.float32)
+    rlink.from_node.image.pixels.foreach_get(got_r)
+    got_r = got_r.reshape(size, size, 4)
+    mr = result_files.gltf_textures(textures, [np.zeros((size, size, 4)), got_r])
+    assert set(mr) == {"baseColorTexture", "metallicRoughnessTexture"}
+    np.testing.assert_allclose(mr["metallicRoughnessTexture"][..., 1], got_r[..., 0], atol=1e-6)
+    assert np.all(mr["metallicRoughnessTexture"][..., 2] == np.float32(0.7))
     got = np.empty(128 * 128 * 4, np.float32)
     carried.pixels.foreach_get(got)
     got = got.reshape(128, 128, 4)
@@ -214,3 +239,5 @@ def test_bake_maps_carries_the_source_texture_onto_the_atlas(scene):
     close = np.abs(have - want).max(1) < 0.1
     assert close.mean() > 0.8, close.mean()
     assert np.ptp(have[:, 0]) > 0.5                          # a texture, not one colour
+    have_r = sample(got_r.astype(np.float64), uv_maps.reshape(-1, 2).astype(np.float64))[:, 0]
+    assert (np.abs(have_r - want[:, 1]) < 0.1).mean() > 0.8  # roughness: the source's v

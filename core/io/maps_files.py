@@ -40,11 +40,12 @@ def png(pixels: np.ndarray, bits: int = 16) -> bytes:
 
 
 def base_gltf(path: Path, mm: MicroMesh, maps: Maps, normal_uri: str, height_uri: str,
-              y_up: bool = False, base_color_uri: str | None = None
+              y_up: bool = False, textures: dict | None = None
               ) -> list[tuple[Path, bytes]]:
     """``path`` (.gltf) and its ``.bin``: the base split at the atlas' seams, with UVs,
-    normals and a material whose ``normalTexture`` is ``normal_uri`` and, where given,
-    whose ``baseColorTexture`` is ``base_color_uri`` (``y_up``: Blender's Z-up turned into
+    normals and a material whose ``normalTexture`` is ``normal_uri`` and whose other textures
+    are ``textures`` ({"baseColorTexture" | "metallicRoughnessTexture" | "emissiveTexture":
+    uri}, the source's textures carried onto the atlas) (``y_up``: Blender's Z-up turned into
     glTF's Y-up, as ``micromesh_export`` does)."""
     at = maps.atlas
     rot = Y_UP.T if y_up else np.eye(3)
@@ -60,14 +61,24 @@ def base_gltf(path: Path, mm: MicroMesh, maps: Maps, normal_uri: str, height_uri
     # normal map's +Y is "up in the image" in both, as Blender's own glTF exporter keeps it)
     uv = g.accessor(np.stack([at.uv[:, 0], 1.0 - at.uv[:, 1]], 1), "<f4", "uvs", target=34962)
     doc, blob = g.finish(path.with_suffix(".bin").name)
-    doc["images"] = [{"uri": normal_uri}] + ([{"uri": base_color_uri}] if base_color_uri else [])
+    textures = dict(textures or {})
+    unknown = set(textures) - {"baseColorTexture", "metallicRoughnessTexture", "emissiveTexture"}
+    if unknown:
+        raise ValueError(f"base_gltf: unknown texture slots {sorted(unknown)}")
+    slots = list(textures)
+    doc["images"] = [{"uri": normal_uri}] + [{"uri": textures[k]} for k in slots]
     doc["samplers"] = [{"magFilter": 9729, "minFilter": 9987, "wrapS": 33071, "wrapT": 33071}]
     doc["textures"] = [{"source": i, "sampler": 0} for i in range(len(doc["images"]))]
     pbr = {"metallicFactor": 0.0}
-    if base_color_uri:
-        pbr["baseColorTexture"] = {"index": 1}
-    doc["materials"] = [{"name": f"{path.stem}_material", "normalTexture": {"index": 0},
-                         "pbrMetallicRoughness": pbr,
+    material = {"name": f"{path.stem}_material", "normalTexture": {"index": 0}}
+    for i, slot in enumerate(slots, 1):
+        if slot == "emissiveTexture":
+            material.update(emissiveTexture={"index": i}, emissiveFactor=[1.0, 1.0, 1.0])
+        else:
+            pbr[slot] = {"index": i}
+    if "metallicRoughnessTexture" in textures:
+        pbr.update(metallicFactor=1.0, roughnessFactor=1.0)
+    doc["materials"] = [{**material, "pbrMetallicRoughness": pbr,
                          "extras": {"heightMap": height_uri,
                                     "heightMapMeaning": "signed distance along the "
                                     "interpolated vertex normals, world units"}}]

@@ -24,30 +24,34 @@ class TransferError(ValueError):
 
 def transfer_texture(mm: MicroMesh, maps: Maps, source: TriMesh, source_uv: np.ndarray,
                      image: np.ndarray, padding: int = 4, chunk: int = 1 << 20) -> np.ndarray:
-    """The source's ``image`` (H, W, C, row 0 at v = 0) on ``maps``' atlas: (R, R, C) float32.
+    """The source's ``image`` (H, W, C, row 0 at v = 0) on ``maps``' atlas: (R, R, C) float32
+    (:func:`transfer_textures` with one image)."""
+    return transfer_textures(mm, maps, source, source_uv, [image], padding, chunk)[0]
+
+
+def transfer_textures(mm: MicroMesh, maps: Maps, source: TriMesh, source_uv: np.ndarray,
+                      images: list, padding: int = 4, chunk: int = 1 << 20) -> list:
+    """The source's ``images`` (each (H, W[, C]), row 0 at v = 0, all mapped by the same UVs)
+    on ``maps``' atlas: a list of (R, R, C) float32, one per image. The nearest source point
+    of each texel is found once for all of them.
 
     Args:
         mm: the micro-mesh the maps were baked from (the frame of ``source``).
         maps: its height map and atlas (:func:`core.maps.bake_maps`).
         source: the textured surface, usually the construction's reference.
         source_uv: (source.n_faces, 3, 2) the UVs of its triangles' corners.
-        image: its texture; any number of channels.
+        images: its textures (base colour, roughness, ...); any number of channels each.
     """
     uv = np.asarray(source_uv, dtype=np.float64)
     if uv.shape != (source.n_faces, 3, 2) or not np.isfinite(uv).all():
         raise TransferError(f"source UVs must be finite, one (3, 2) block per face "
                             f"({source.n_faces}), got {uv.shape}")
-    img = np.asarray(image, dtype=np.float64)
-    if img.ndim == 2:
-        img = img[..., None]
-    if img.ndim != 3 or min(img.shape[:2]) < 2:
-        raise TransferError(f"the source image must be (H, W[, C]) with H, W >= 2, got "
-                            f"{img.shape}")
+    imgs = [_checked(image) for image in images]
     res = maps.height.shape[0]
     face, bary = texel_faces(maps.atlas, res, res)
     filled = face >= 0
     ys, xs = np.nonzero(filled)
-    out = np.zeros((res, res, img.shape[2]))
+    outs = [np.zeros((res, res, img.shape[2])) for img in imgs]
     U = unit_directions(mm)
     for s in range(0, len(ys), chunk):
         y, x = ys[s:s + chunk], xs[s:s + chunk]
@@ -55,7 +59,17 @@ def transfer_texture(mm: MicroMesh, maps: Maps, source: TriMesh, source_uv: np.n
         p = P + n * maps.height[y, x, None]
         near, sf, _ = nearest_points(p, source)
         corners = source.vertices[source.faces[sf]]
-        w = barycentrics(near, corners)
-        out[y, x] = sample(img, np.einsum("qk,qkc->qc", w, uv[sf]))
-    return dilate(out, filled, padding).astype(np.float32)
+        at = np.einsum("qk,qkc->qc", barycentrics(near, corners), uv[sf])
+        for img, out in zip(imgs, outs):
+            out[y, x] = sample(img, at)
+    return [dilate(out, filled, padding).astype(np.float32) for out in outs]
 
+
+def _checked(image) -> np.ndarray:
+    img = np.asarray(image, dtype=np.float64)
+    if img.ndim == 2:
+        img = img[..., None]
+    if img.ndim != 3 or min(img.shape[:2]) < 2:
+        raise TransferError(f"the source image must be (H, W[, C]) with H, W >= 2, got "
+                            f"{img.shape}")
+    return img
