@@ -121,15 +121,14 @@ def bake_with_textures(mm: MicroMesh, resolution: int, textures, progress, shoul
     return maps, carried
 
 
-def carry_textures(obj, textures, carried: list) -> list:
+def carry_textures(obj, textures, carried: list) -> None:
     """The carried textures as images of the maps object's material, each linked to the input
-    it fed in the source's, the source's constants copied; the images, in order."""
-    mat, made = obj.data.materials[0], []
+    it fed in the source's; the source's constants copied."""
+    mat = obj.data.materials[0]
     source_texture.copy_constants(mat, textures)
     for like, pixels in zip(textures.images, carried):
-        made.append(source_texture.make_image(f"{obj.name}_{like.slug}", pixels, like))
-        source_texture.link_input(mat, made[-1], like)
-    return made
+        img = source_texture.make_image(f"{obj.name}_{like.slug}", pixels, like)
+        source_texture.link_input(mat, img, like)
 
 
 class MICROMESH_OT_bake_maps(bpy.types.Operator):
