@@ -93,8 +93,10 @@ def _pair_code(verts, faces, nbr, m, tb, db, fb, ra, ca, rb, cb, vertical, width
         fixed, p0 = ca + 0.5, ra + 0.5
     else:
         fixed, p0 = ra + 0.5, ca + 0.5
-    return _edge_code(verts, faces, nbr, m, cur, bits, walk, near_a, vertical, fixed, p0,
-                      width, height)
+    # np.bool_: a plain bool argument, not the literal True / False of the caller (which
+    # would compile _edge_code twice, 2 s each on a fresh cache, for no speed)
+    return _edge_code(verts, faces, nbr, m, cur, bits, walk, near_a, np.bool_(vertical), fixed,
+                      p0, width, height)
 
 
 @njit
