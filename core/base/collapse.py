@@ -50,10 +50,49 @@ def _qerr(q, x, y, z):  # pragma: no cover - compiled
 
 
 @kernel(cache=True)
-def _place(q, rx, ry, rz, a):  # pragma: no cover - compiled
+def eigh3(a, vec):  # pragma: no cover - compiled
+    """Eigen-decomposition of the symmetric 3 x 3 ``a`` in place (cyclic Jacobi rotations):
+    on return its diagonal holds the eigenvalues (unsorted) and the columns of ``vec`` the
+    unit eigenvectors. ``np.linalg.eigh`` does the same through LAPACK with allocations, which
+    took most of a collapse's time (every candidate places its vertex)."""
+    for i in range(3):
+        for j in range(3):
+            vec[i, j] = 1.0 if i == j else 0.0
+    for _ in range(32):
+        off = a[0, 1] * a[0, 1] + a[0, 2] * a[0, 2] + a[1, 2] * a[1, 2]
+        diag = a[0, 0] * a[0, 0] + a[1, 1] * a[1, 1] + a[2, 2] * a[2, 2]
+        if off <= 1e-32 * diag or off == 0.0:
+            return
+        for p, r in ((0, 1), (0, 2), (1, 2)):
+            apr = a[p, r]
+            if apr == 0.0:
+                continue
+            theta = (a[r, r] - a[p, p]) / (2.0 * apr)
+            t = 1.0 / (abs(theta) + np.sqrt(theta * theta + 1.0))
+            if theta < 0.0:
+                t = -t
+            c = 1.0 / np.sqrt(t * t + 1.0)
+            s = t * c
+            for k in range(3):            # A <- A J (columns p, r)
+                akp, akr = a[k, p], a[k, r]
+                a[k, p] = c * akp - s * akr
+                a[k, r] = s * akp + c * akr
+            for k in range(3):            # A <- J^T A (rows p, r)
+                apk, ark = a[p, k], a[r, k]
+                a[p, k] = c * apk - s * ark
+                a[r, k] = s * apk + c * ark
+            for k in range(3):            # V <- V J
+                vkp, vkr = vec[k, p], vec[k, r]
+                vec[k, p] = c * vkp - s * vkr
+                vec[k, r] = s * vkp + c * vkr
+
+
+@kernel(cache=True)
+def _place(q, rx, ry, rz, scratch):  # pragma: no cover - compiled
     """The minimiser of the quadric q nearest to the reference point r (Lindstrom's SVD
-    placement): exact in the directions the planes constrain (eigenvalues above 1e-3 of the
-    largest), r itself along the rest (a flat region, a crease line). ``a`` is (3, 3) scratch."""
+    placement): exact in the directions the planes constrain (eigenvalues above ``FREE`` of
+    the largest), r itself along the rest (a flat region, a crease line). ``scratch`` is (6, 3)."""
+    a, vec = scratch[:3], scratch[3:]
     a[0, 0], a[0, 1], a[0, 2] = q[0], q[1], q[2]
     a[1, 0], a[1, 1], a[1, 2] = q[1], q[4], q[5]
     a[2, 0], a[2, 1], a[2, 2] = q[2], q[5], q[7]
@@ -61,12 +100,13 @@ def _place(q, rx, ry, rz, a):  # pragma: no cover - compiled
     g0 = -(q[0] * rx + q[1] * ry + q[2] * rz + q[3])
     g1 = -(q[1] * rx + q[4] * ry + q[5] * rz + q[6])
     g2 = -(q[2] * rx + q[5] * ry + q[7] * rz + q[8])
-    lam, vec = np.linalg.eigh(a)
-    top = max(lam[2], 1e-300)
+    eigh3(a, vec)
+    top = max(a[0, 0], a[1, 1], a[2, 2], 1e-300)
     x, y, z = rx, ry, rz
     for i in range(3):
-        if lam[i] > FREE * top:
-            c = (vec[0, i] * g0 + vec[1, i] * g1 + vec[2, i] * g2) / lam[i]
+        lam = a[i, i]
+        if lam > FREE * top:
+            c = (vec[0, i] * g0 + vec[1, i] * g1 + vec[2, i] * g2) / lam
             x += c * vec[0, i]
             y += c * vec[1, i]
             z += c * vec[2, i]
@@ -76,7 +116,7 @@ def _place(q, rx, ry, rz, a):  # pragma: no cover - compiled
 @kernel(cache=True)
 def candidate(u, v, V, F, Q, W, isb, locked, head, nxt, falive, smooth, alpha, q,
               scratch):  # pragma: no cover - compiled
-    """(ok, error, cost, x, y, z) of collapsing edge (u, v); ``q`` (10,) and ``scratch`` (3, 3)
+    """(ok, error, cost, x, y, z) of collapsing edge (u, v); ``q`` (10,) and ``scratch`` (6, 3)
     are scratch arrays. ``smooth``: place towards the one-rings' centre, else the midpoint."""
     w = W[u] + W[v]
     if w <= 0:
@@ -140,7 +180,7 @@ def candidate(u, v, V, F, Q, W, isb, locked, head, nxt, falive, smooth, alpha, q
 def geometry_ok(u, v, x, y, z, V, F, head, nxt, falive, min_quality, min_dot, p):  # pragma: no cover
     """No face around the edge flips or turns past ``min_dot``, none degenerates, and the
     worst new quality is at least min(min_quality, the worst old quality around).
-    ``p`` is a (3, 3) scratch array."""
+    ``p`` is a (3, 3) or larger scratch array (its first three rows are used)."""
     q_old = 1.0
     q_new = 1.0
     for a in (u, v):

@@ -47,7 +47,7 @@ class Decimation:
 def _push_all(V, F, Q, W, isb, locked, head, nxt, falive, valive, stamp, edges, hc, hi,
               smooth, alpha, max_err):  # pragma: no cover - compiled
     q = np.empty(10)
-    scratch = np.empty((3, 3))
+    scratch = np.empty((6, 3))
     n = 0
     for i in range(edges.shape[0]):
         a, b = edges[i, 0], edges[i, 1]
@@ -63,7 +63,7 @@ def _run(V, F, Q, W, isb, locked, valive, falive, head, tail, nxt, stamp, mark, 
          hsize, n_faces, target, max_err, min_quality, min_dot, smooth, alpha, max_steps,
          rejected):  # pragma: no cover - compiled
     q = np.empty(10)
-    scratch = np.empty((3, 3))
+    scratch = np.empty((6, 3))
     buf = np.empty(RING, np.int64)
     S = np.empty(RING + 1, np.int64)
     R = np.empty(RING, np.int64)
