@@ -38,8 +38,9 @@ def write_report(outcome, out) -> None:
 def gltf_textures(textures, carried: list) -> dict:
     """The carried textures as glTF's material wants them: {"baseColorTexture": (R, R, 4),
     "metallicRoughnessTexture": (R, R, 3) (roughness in green, metallic in blue; the other
-    one's constant where only one is textured), "emissiveTexture": (R, R, 3)}, where the
-    source has them."""
+    one's constant where only one is textured), "emissiveTexture": (R, R, 3), the colour times
+    the source's Emission Strength (at most 1: glTF's core emission; none where it is 0)},
+    where the source has them."""
     by = {t.socket: (t, c) for t, c in zip(textures.images, carried)}
     out = {}
     if "Base Color" in by:
@@ -51,8 +52,9 @@ def gltf_textures(textures, carried: list) -> dict:
             t, c = by.get(socket, (None, None))
             mr[..., channel] = t.values(c) if t else textures.constants[socket]
         out["metallicRoughnessTexture"] = mr
-    if "Emission Color" in by:
-        out["emissiveTexture"] = by["Emission Color"][1][..., :3]
+    strength = min(textures.constants.get("Emission Strength", 0.0), 1.0)
+    if "Emission Color" in by and strength > 0:
+        out["emissiveTexture"] = by["Emission Color"][1][..., :3] * strength
     return out
 
 

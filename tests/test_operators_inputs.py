@@ -241,3 +241,27 @@ def test_bake_maps_carries_the_source_texture_onto_the_atlas(scene):
     assert np.ptp(have[:, 0]) > 0.5                          # a texture, not one colour
     have_r = sample(got_r.astype(np.float64), uv_maps.reshape(-1, 2).astype(np.float64))[:, 0]
     assert (np.abs(have_r - want[:, 1]) < 0.1).mean() > 0.8  # roughness: the source's v
+
+
+def test_carried_emission_reaches_gltf_as_the_source_shows_it():
+    """The emission colour goes into glTF's emissive texture times the source's Emission
+    Strength (glTF's core emission stops at 1), and not at all where the strength is 0 (the
+    source does not glow); a lone Metallic texture gets the source's Roughness beside it."""
+    from micromesh.operators.result_files import gltf_textures
+    from micromesh.operators.source_texture import SourceImage, SourceTextures
+
+    px = np.full((4, 4, 4), 0.5, np.float32)
+    images = [SourceImage("Emission Color", "Color", px, "sRGB", False),
+              SourceImage("Metallic", "Color", px, "Non-Color", False)]
+    carried = [np.full((8, 8, 4), 0.8, np.float32), np.full((8, 8, 4), 0.25, np.float32)]
+    for strength, want in ((0.0, None), (0.5, 0.4), (3.0, 0.8)):
+        tex = SourceTextures(None, None, images,
+                             {"Metallic": 0.0, "Roughness": 0.3, "Emission Strength": strength})
+        out = gltf_textures(tex, carried)
+        if want is None:
+            assert "emissiveTexture" not in out
+        else:
+            np.testing.assert_allclose(out["emissiveTexture"], want, rtol=1e-6)
+        mr = out["metallicRoughnessTexture"]
+        np.testing.assert_allclose(mr[..., 1], 0.3, rtol=1e-6)       # Roughness: the value
+        np.testing.assert_allclose(mr[..., 2], 0.25, rtol=1e-6)      # Metallic: luminance
