@@ -56,32 +56,32 @@ class SourceTextures:
     constants: dict = field(default_factory=dict)
 
 
-def _principled(obj: bpy.types.Object):
+def _principled_nodes(obj: bpy.types.Object):
     for slot in obj.material_slots:
         mat = slot.material
         if mat is None or mat.node_tree is None:
             continue
-        for node in mat.node_tree.nodes:
-            if node.type == "BSDF_PRINCIPLED":
-                return node
-    return None
+        yield from (n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
 
 
-def textured_inputs(obj: bpy.types.Object) -> dict:
-    """{input name: (image, output name)} for the inputs of :data:`CARRIED` that an Image
-    Texture node feeds directly in the object's first Principled BSDF."""
-    bsdf, out = _principled(obj), {}
-    for name in CARRIED if bsdf is not None else ():
-        for link in bsdf.inputs[name].links:
-            src = link.from_node
-            if src.type == "TEX_IMAGE" and src.image is not None and src.image.size[0] > 1:
-                out[name] = (src.image, link.from_socket.name)
-    return out
+def textured_inputs(obj: bpy.types.Object):
+    """(the object's first Principled BSDF that an Image Texture node feeds directly, {input
+    name: (image, output name)} for its inputs of :data:`CARRIED` so fed), or (None, {})."""
+    for bsdf in _principled_nodes(obj):
+        out = {}
+        for name in CARRIED:
+            for link in bsdf.inputs[name].links:
+                src = link.from_node
+                if src.type == "TEX_IMAGE" and src.image is not None and src.image.size[0] > 1:
+                    out[name] = (src.image, link.from_socket.name)
+        if out:
+            return bsdf, out
+    return None, {}
 
 
 def read(obj: bpy.types.Object) -> SourceTextures | None:
     """The source's textured inputs and UVs, or None where it has either not."""
-    found = textured_inputs(obj)
+    bsdf, found = textured_inputs(obj)
     uv = bl_mesh.mesh_uvs(obj) if found else None
     if uv is None:
         return None
@@ -92,7 +92,6 @@ def read(obj: bpy.types.Object) -> SourceTextures | None:
         img.pixels.foreach_get(pixels)
         images.append(SourceImage(socket, output, pixels.reshape(h, w, 4),
                                   img.colorspace_settings.name, bool(img.is_float)))
-    bsdf = _principled(obj)
     constants = {k: float(bsdf.inputs[k].default_value) for k in CONSTANTS}
     return SourceTextures(bl_mesh.mesh_to_arrays(obj), uv, images, constants)
 
