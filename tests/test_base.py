@@ -168,10 +168,10 @@ def test_real_meshes_keep_topology(name):
 
 
 def test_the_placement_eigen_decomposition_matches_lapack():
-    """collapse.eigh3 (the quadric's 3 x 3 eigen-decomposition, without LAPACK's
+    """base.eigh3 (the quadric's 3 x 3 eigen-decomposition, without LAPACK's
     allocations): the same eigenvalues as numpy's eigh, orthonormal vectors that rebuild the
     matrix, on random, nearly rank-1, diagonal and zero matrices."""
-    from core.base.collapse import eigh3
+    from core.base.eigh3 import eigh3
 
     rng = np.random.default_rng(7)
     cases = [np.zeros((3, 3)), np.diag([3.0, -1.0, 2.0]), np.eye(3)]
