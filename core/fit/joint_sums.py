@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..runtime.jit import kernel
-from .triangle_sums import block_entries
+from .triangle_sums import block_entries, csr_sum
 
 
 @kernel(cache=True)
@@ -96,18 +96,17 @@ def joint_system(corners, B, pts, normals, weights, tri, T, P, D, W, topology, b
                f64(D), float(slopes), tri_face, i64(base_faces), i64(slot.reshape(m, 3)),
                i64(W.indptr), i64(W.indices), f64(W.data), n, nb, G, C, H, b)
     del slot
-    dd_r, dd_c, dd_v = block_entries(G, T)
+    size = n + 3 * nb
+    # The parts summed one at a time (csr_sum), each freed before the next is made
+    M = csr_sum(*block_entries(G, T.astype(np.int32)), size)
     del G
     face_of = pairs % nf
     base_col = n + np.arange(3)[None, :, None] * nb + base_faces[face_of][:, None, :]  # (p, 3, 3)
-    cp_r = np.repeat(pairs // nf, 9)
-    cp_c = base_col.reshape(-1)
-    cp_v = C.reshape(-1)
+    coupling = csr_sum(np.repeat(pairs // nf, 9), base_col.reshape(-1), C.reshape(-1), size)
+    del C, base_col, face_of, pairs
+    M = M + coupling + coupling.T.tocsr()
+    del coupling
     hb = (n + np.arange(3)[None, :, None] * nb + base_faces[:, None, :]).reshape(nf, 9)
-    hh_r = np.repeat(hb, 9, axis=1).reshape(-1)
-    hh_c = np.tile(hb, (1, 9)).reshape(-1)
-    size = n + 3 * nb
-    M = sp.csr_matrix((np.concatenate([dd_v, cp_v, cp_v, H.reshape(-1)]),
-                       (np.concatenate([dd_r, cp_r, cp_c, hh_r]),
-                        np.concatenate([dd_c, cp_c, cp_r, hh_c]))), shape=(size, size))
+    M = M + csr_sum(np.repeat(hb, 9, axis=1).reshape(-1), np.tile(hb, (1, 9)).reshape(-1),
+                 H.reshape(-1), size)
     return M, b

@@ -9,6 +9,7 @@ h_k = n·P_k) adds w g_i g_j (B_i B_j + slopes (3 δ_ij − 1)) to the triangle'
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..runtime.jit import kernel
 
@@ -48,3 +49,12 @@ def block_entries(G: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     iu = [(i, j) for i in range(3) for j in range(3)]
     return (np.concatenate([T[:, i] for i, j in iu]), np.concatenate([T[:, j] for i, j in iu]),
             np.concatenate([G[:, min(i, j), max(i, j)] for i, j in iu]))
+
+
+def csr_sum(rows, cols, values, size: int) -> sp.csr_matrix:
+    """(size, size) CSR of the triplets, duplicates summed, with int32 indices where they fit
+    (one part of a system at a time: a COO of all the entries at once took about twice the
+    memory of the matrix it becomes, the fit's peak on large inputs)."""
+    index = np.int32 if size < np.iinfo(np.int32).max else np.int64
+    return sp.coo_matrix((values, (rows.astype(index, copy=False), cols.astype(index, copy=False))),
+                         shape=(size, size)).tocsr()
