@@ -100,8 +100,7 @@ def pick(candidates, spec, tagset):
 
 def pinned(p: platforms.Platform) -> list[str]:
     """What Install Dependencies asks pip for on platform ``p``."""
-    pins = ["numpy<2"] + [r for m in deps.REQUIREMENTS.values() for r in m]
-    return platforms.requirements_for(pins, p.env)
+    return platforms.requirements_for(deps.pins(), p.env)
 
 
 def resolve(p: platforms.Platform, torch_index: str | None, reqs: list[str] | None = None) -> dict:

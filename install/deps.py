@@ -69,11 +69,18 @@ def missing_modules(names=None) -> list[str]:
     return out
 
 
+def pins(modules=None) -> list[str]:
+    """The requirement strings (markers kept) for ``modules`` (default: all of them), with
+    Blender's numpy held below 2."""
+    mods = REQUIREMENTS if modules is None else modules
+    return ["numpy<2"] + [r for m in mods for r in REQUIREMENTS[m]]
+
+
 def pip_command(target: str, modules: list[str] | None = None, cuda: bool = False) -> list[str]:
     """The pip command that installs the missing (or given) modules into ``target``."""
     mods = [m for m in (modules if modules is not None else missing_modules()) if m in REQUIREMENTS]
     cmd = [sys.executable, "-m", "pip", "install", "--disable-pip-version-check",
-           "--target", target, "numpy<2"] + [r for m in mods for r in REQUIREMENTS[m]]
+           "--target", target] + pins(mods)
     if "torch" in mods and not cuda:
         cmd += ["--extra-index-url", TORCH_CPU_INDEX]
     return cmd
