@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..runtime.jit import kernel
-from .triangle_sums import block_entries, csr_sum
+from .triangle_sums import blocks_csr, csr_sum
 
 
 @kernel(cache=True)
@@ -97,8 +97,8 @@ def joint_system(corners, B, pts, normals, weights, tri, T, P, D, W, topology, b
                i64(W.indptr), i64(W.indices), f64(W.data), n, nb, G, C, H, b)
     del slot
     size = n + 3 * nb
-    # The parts summed one at a time (csr_sum), each freed before the next is made
-    M = csr_sum(*block_entries(G, T.astype(np.int32)), size)
+    # The parts summed one at a time (csr_sum), each freed before the next is made.
+    M = blocks_csr(G, T, size)
     del G
     face_of = pairs % nf
     base_col = n + np.arange(3)[None, :, None] * nb + base_faces[face_of][:, None, :]  # (p, 3, 3)

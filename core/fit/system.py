@@ -18,7 +18,7 @@ from ..closest import ClosestPointIndex
 from ..laplacian import uniform_laplacian
 from ..micromesh import MicroMesh
 from .joint_sums import joint_system
-from .triangle_sums import block_entries, csr_sum, triangle_sums
+from .triangle_sums import blocks_csr, triangle_sums
 
 
 def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, slopes: float,
@@ -81,7 +81,7 @@ def _displacement_system(corners, B, pts, normals, weights, tri, T, P, D, slopes
     triangle_sums(np.ascontiguousarray(tri, dtype=np.int64),
                   np.ascontiguousarray(corners, dtype=np.int64), f64(B), f64(pts), f64(normals),
                   f64(weights), f64(P), f64(D), float(slopes), G, b)
-    return csr_sum(*block_entries(G, T.astype(np.int32)), n), b
+    return blocks_csr(G, T, n), b
 
 
 def _row_system(corners, B, pts, normals, weights, P, D, W, size, slopes, chunk):

@@ -51,10 +51,20 @@ def block_entries(G: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray,
             np.concatenate([G[:, min(i, j), max(i, j)] for i, j in iu]))
 
 
+def _index(size: int):
+    return np.int32 if size < np.iinfo(np.int32).max else np.int64
+
+
 def csr_sum(rows, cols, values, size: int) -> sp.csr_matrix:
     """(size, size) CSR of the triplets, duplicates summed, with int32 indices where they fit
     (one part of a system at a time: a COO of all the entries at once took about twice the
     memory of the matrix it becomes, the fit's peak on large inputs)."""
-    index = np.int32 if size < np.iinfo(np.int32).max else np.int64
+    index = _index(size)
     return sp.coo_matrix((values, (rows.astype(index, copy=False), cols.astype(index, copy=False))),
                          shape=(size, size)).tocsr()
+
+
+def blocks_csr(G: np.ndarray, T: np.ndarray, size: int) -> sp.csr_matrix:
+    """:func:`csr_sum` of :func:`block_entries` (the corners narrowed to the index type
+    first, so that the triplets are made in it)."""
+    return csr_sum(*block_entries(G, T.astype(_index(size), copy=False)), size)
