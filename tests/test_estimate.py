@@ -14,13 +14,37 @@ from core.settings import preset
 
 def test_the_estimate_grows_with_the_input_and_the_budget():
     s = preset("default")
-    small, big = estimate(100_000, s), estimate(1_000_000, s)
+    small, big = estimate(100_000, s, speed=1.0), estimate(1_000_000, s, speed=1.0)
     assert 0 < small.seconds < big.seconds and 0 < small.peak_bytes < big.peak_bytes
     assert small.micro_triangles == 200_000 and big.micro_triangles == 2_000_000
-    assert set(small.phases) == {"base", "optimize", "fit", "metrics"}
-    half = estimate(1_000_000, preset("default", budget_ratio=1.0))
+    assert set(small.phases) == {"input", "base", "optimize", "fit", "metrics"}
+    half = estimate(1_000_000, preset("default", budget_ratio=1.0), speed=1.0)
     assert half.peak_bytes < big.peak_bytes and half.micro_triangles == 1_000_000
     assert "GB of memory for 2,000,000 micro-triangles" in big.text()
+
+
+def test_times_scale_with_the_machine_speed_and_memory_does_not():
+    s = preset("default", time_limit_s=0.0)
+    ref, fast = estimate(300_000, s, speed=1.0), estimate(300_000, s, speed=2.0)
+    assert fast.seconds == pytest.approx(ref.seconds / 2)
+    assert fast.phases["fit"] == pytest.approx(ref.phases["fit"] / 2)
+    assert fast.peak_bytes == ref.peak_bytes
+    # The time limit is wall time: a slower machine stops optimising at the same limit, and
+    # only the work after it (reading, fit, metrics) takes longer.
+    limited = preset("default", time_limit_s=60.0)
+    slow = estimate(1_000_000, limited, speed=0.25)
+    after = slow.phases["input"] + slow.phases["fit"] + slow.phases["metrics"]
+    assert after < slow.seconds <= 60.0 + after + 3.0 / 0.25
+
+
+def test_the_machine_speed_is_probed_once_and_is_a_plain_number():
+    from core.runtime import speed
+
+    first = speed.machine_speed()
+    assert 0.05 <= first <= 20.0 and speed.machine_speed() == first
+    assert 0.0 < speed.probe_seconds() < 5.0
+    assert estimate(100_000, preset("default")).seconds == pytest.approx(
+        estimate(100_000, preset("default"), speed=first).seconds)
 
 
 def test_a_run_that_will_not_fit_is_refused_with_the_estimate():

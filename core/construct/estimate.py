@@ -1,13 +1,14 @@
 """Time and peak memory of a construction, estimated from the input's face count and the
 settings before any heavy work, and the refusal of a run that will not fit in memory.
 
-The model is linear in the work each phase does (faces decimated, micro-triangles rendered
-per iteration and view pixel, micro-triangles fitted, faces rendered for the metrics); its
-coefficients were fitted to five `default` constructions of ``bench/construct_bench.py``
-(60k-100k faces) on the developers' 2-core x86-64 machine, the memory's refitted to runs of
-up to 2.15M micro-triangles; every run's metrics keep the
-estimate beside the measured peak, and ``bench/scale_bench.py`` prints both for larger inputs.
-Times are for that machine; memory is the process's peak resident size.
+The model is linear in the work each phase does (faces decimated and read, micro-triangles
+rendered per iteration and view pixel, micro-triangles fitted, faces rendered for the
+metrics); its time coefficients were fitted to `default` constructions of 269k and 1.07M
+faces on the developers' 2-core machine (docs/results.md, eleventh session) and are divided
+by this machine's speed relative to that one (``core.runtime.speed``, a probe of a few tens of
+milliseconds); the memory's were fitted to runs of up to 2.15M micro-triangles. Every run's
+metrics keep the estimate beside the measurement, and ``bench/scale_bench.py`` prints both.
+Memory is the process's peak resident size.
 """
 from __future__ import annotations
 
@@ -18,15 +19,18 @@ from .types import ConstructError
 
 _MB = 2 ** 20
 
-# Seconds (2 cores): per input face for the base builder and the metrics; per micro-triangle
-# and per view pixel of one iteration; per micro-triangle for the fit; fixed start-up.
-_T_FIXED = 5.0
-_T_BASE_PER_FACE = 1.0e-4
-_T_ITER_FIXED = 0.02
-_T_ITER_PER_MICRO = 1.56e-6
-_T_ITER_PER_PIXEL = 9.0e-8
-_T_FIT_PER_MICRO = 1.7e-4
-_T_METRICS_PER_FACE = 3.5e-5
+# Seconds on the estimate's machine (speed 1): per input face for the base builder, for the
+# rest of the work on the input (reading, orientation, the scene, the files) and for the
+# metrics; per micro-triangle and per view pixel of one iteration; per micro-triangle for the
+# fit (with the residual exchange and the bounds); fixed start-up with a warm kernel cache.
+_T_FIXED = 3.0
+_T_BASE_PER_FACE = 2.6e-5
+_T_INPUT_PER_FACE = 1.8e-5
+_T_ITER_FIXED = 0.005
+_T_ITER_PER_MICRO = 9.0e-7
+_T_ITER_PER_PIXEL = 1.6e-8
+_T_FIT_PER_MICRO = 4.5e-5
+_T_METRICS_PER_FACE = 1.05e-5
 # Bytes: the interpreter, the libraries and what does not grow with the input; per
 # micro-triangle (the micro-mesh, the optimiser's state, the fit's samples, matches and normal
 # equations: the peak is the fit's); per cached image pixel; per input face (the reference and
@@ -62,19 +66,28 @@ def micro_triangles(reference_faces: int, s: ConstructSettings) -> int:
     return int(reference_faces * s.base_ratio * 4 ** s.max_level)
 
 
-def estimate(reference_faces: int, s: ConstructSettings) -> Estimate:
-    """Time and peak memory of constructing a micro-mesh of a ``reference_faces`` input."""
+def estimate(reference_faces: int, s: ConstructSettings, speed: float | None = None
+             ) -> Estimate:
+    """Time and peak memory of constructing a micro-mesh of a ``reference_faces`` input on a
+    machine of ``speed`` (default: this one's, :func:`core.runtime.speed.machine_speed`)."""
+    if speed is None:
+        from ..runtime.speed import machine_speed
+
+        speed = machine_speed()
     m = micro_triangles(reference_faces, s)
     train_pixels = s.views_per_iter * s.train_resolution ** 2
     # Coarse to fine: over the schedule the micro-mesh holds about half its final triangles.
     per_iter = _T_ITER_FIXED + _T_ITER_PER_MICRO * 0.5 * m + _T_ITER_PER_PIXEL * train_pixels
-    phases = {"base": _T_BASE_PER_FACE * reference_faces,
+    phases = {"input": _T_INPUT_PER_FACE * reference_faces,
+              "base": _T_BASE_PER_FACE * reference_faces,
               "optimize": s.iterations * per_iter,
               "fit": _T_FIT_PER_MICRO * m if s.final_fit else 0.0,
               "metrics": _T_METRICS_PER_FACE * reference_faces if s.compute_metrics else 0.0}
-    seconds = _T_FIXED + sum(phases.values())
-    if s.time_limit_s > 0:
-        seconds = min(seconds, s.time_limit_s + phases["fit"] + phases["metrics"] + _T_FIXED)
+    phases = {k: v / speed for k, v in phases.items()}
+    seconds = _T_FIXED / speed + sum(phases.values())
+    if s.time_limit_s > 0:        # the limit counts wall seconds from the base building on
+        after = phases["input"] + phases["fit"] + phases["metrics"] + _T_FIXED / speed
+        seconds = min(seconds, s.time_limit_s + after)
     images = s.n_views * s.train_resolution ** 2 + s.eval_views * s.eval_resolution ** 2
     peak = _M_FIXED + _M_PER_FACE * reference_faces + _M_PER_MICRO * m + _M_PER_PIXEL * images
     return Estimate(seconds, float(peak), m, phases)
