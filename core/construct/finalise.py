@@ -19,16 +19,14 @@ from ..fit import fit_micromesh, fit_samples, surface_errors
 from .choose_levels import final_levels, residual_exchange
 from .evaluate import evaluate
 from .frame import to_caller_frame
-from .params import Parameters
 from .scene import face_errors
 from .state import RunState
 from .types import ConstructResult
 
 
-def finalise(run: RunState, params: Parameters, reference: TriMesh, base: TriMesh,
+def finalise(run: RunState, mm: MicroMesh, reference: TriMesh, base: TriMesh,
              t_start: float, iterations: int, stopped_early: bool) -> ConstructResult:
-    with run.timer.phase("finalize"):
-        mm = params.micromesh()
+    """The result from the optimiser's micro-mesh ``mm`` (unit frame)."""
     mm = final_levels(run, mm)
     with run.timer.phase("finalize"):
         mm = mm.with_levels(balance_levels(run.base, mm.levels))

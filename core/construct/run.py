@@ -180,7 +180,12 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
             progress(Progress("optimize", it + 1, n_it, loss, float(p),
                               schedule.bounded_eta(el / it_done * (n_it - it_done))))
     run.check_stop()
-    result = finalise(run, params, reference, base, t_start, it_done, schedule.stopped_early)
+    with run.timer.phase("finalize"):
+        mm = params.micromesh()
+    # The optimiser's state (its solver, moments, the renderer's last buffers) and the
+    # training images are not needed after the loop: free them before the fit's peak.
+    del params, target_all
+    result = finalise(run, mm, reference, base, t_start, it_done, schedule.stopped_early)
     result.metrics["warnings"] = warnings
     result.metrics["estimate"] = {"seconds": guess.seconds, "peak_bytes": guess.peak_bytes}
     result.metrics["peak_memory_bytes"] = peak_resident_bytes()

@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..runtime.jit import kernel
-from .triangle_sums import blocks_csr, csr_sum
+from .triangle_sums import blocks_csr, csr_sum, f64
 
 
 @kernel(cache=True)
@@ -80,21 +80,24 @@ def joint_sums(tri, corners, B, pts, normals, weights, P, D, slopes, tri_face, b
                 b[n + (x // 3) * nb + base_faces[f, x % 3]] += w * be[x] * r
 
 
-def joint_system(corners, B, pts, normals, weights, tri, T, P, D, W, topology, base_faces,
+def joint_system(matches, pts, normals, weights, T, P, D, W, topology, base_faces,
                  slopes: float) -> tuple[sp.csr_matrix, np.ndarray]:
     """(M, b) over the displacements (n) and the base offsets (3 nb, x then y then z), the
-    system ``system._row_system`` builds from the rows with ``W``."""
+    system ``system._row_system`` builds from the rows with ``W``; ``matches`` as
+    ``system._matches`` yields them."""
     n, nb, m, nf = len(P), W.shape[1], len(T), len(base_faces)
     tri_face = np.ascontiguousarray(topology.triangle_face, dtype=np.int64)
     key = (T.astype(np.int64) * nf + tri_face[:, None]).reshape(-1)
     pairs, slot = np.unique(key, return_inverse=True)     # (micro-vertex, base face) pairs
     G, C = np.zeros((m, 3, 3)), np.zeros((len(pairs), 9))
     H, b = np.zeros((nf, 9, 9)), np.zeros(n + 3 * nb)
-    f64 = lambda x: np.ascontiguousarray(x, dtype=np.float64)  # noqa: E731
     i64 = lambda x: np.ascontiguousarray(x, dtype=np.int64)  # noqa: E731
-    joint_sums(i64(tri), i64(corners), f64(B), f64(pts), f64(normals), f64(weights), f64(P),
-               f64(D), float(slopes), tri_face, i64(base_faces), i64(slot.reshape(m, 3)),
-               i64(W.indptr), i64(W.indices), f64(W.data), n, nb, G, C, H, b)
+    slot, faces = i64(slot.reshape(m, 3)), i64(base_faces)
+    P, D, w_ptr, w_idx, w_val = f64(P), f64(D), i64(W.indptr), i64(W.indices), f64(W.data)
+    for part, tri, corners, B in matches:
+        joint_sums(i64(tri), corners, B, f64(pts[part]), f64(normals[part]),
+                   f64(weights[part]), P, D, float(slopes), tri_face, faces, slot, w_ptr,
+                   w_idx, w_val, n, nb, G, C, H, b)
     del slot
     size = n + 3 * nb
     # The parts summed one at a time (csr_sum), each freed before the next is made.

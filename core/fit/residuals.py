@@ -7,19 +7,26 @@ from ..closest import ClosestPointIndex
 from ..micromesh import MicroMesh
 
 
-def surface_errors(mm: MicroMesh, samples) -> tuple[np.ndarray, np.ndarray]:
+def surface_errors(mm: MicroMesh, samples, chunk: int = 1 << 20
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """(distance, normal) per base face (nf,) of the reference samples (of
     :func:`reference_samples`) whose nearest micro-surface point lies on that face: the
     weighted squared distance, and the weighted squared difference between the sample's normal
     and the micro-triangle's (what shading sees). Where the fitted micro-mesh still misses the
-    reference."""
+    reference. The samples are matched ``chunk`` at a time."""
     pts, normals, weights = samples
     tess = mm.tessellate()
     V, T = tess.vertices, tess.triangles
-    _, tri, dist = ClosestPointIndex(V, T).query(pts)
+    index = ClosestPointIndex(V, T)
     tn = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
     tn /= np.maximum(np.linalg.norm(tn, axis=1, keepdims=True), 1e-300)
-    face = tess.triangle_face[tri]
     nf = mm.base.n_faces
-    return (np.bincount(face, weights=weights * dist ** 2, minlength=nf),
-            np.bincount(face, weights=weights * ((tn[tri] - normals) ** 2).sum(1), minlength=nf))
+    distance, normal = np.zeros(nf), np.zeros(nf)
+    for lo in range(0, len(pts), chunk):
+        part = slice(lo, lo + chunk)
+        _, tri, dist = index.query(pts[part])
+        face, w = tess.triangle_face[tri], weights[part]
+        distance += np.bincount(face, weights=w * dist ** 2, minlength=nf)
+        normal += np.bincount(face, weights=w * ((tn[tri] - normals[part]) ** 2).sum(1),
+                              minlength=nf)
+    return distance, normal

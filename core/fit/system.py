@@ -18,12 +18,12 @@ from ..closest import ClosestPointIndex
 from ..laplacian import uniform_laplacian
 from ..micromesh import MicroMesh
 from .joint_sums import joint_system
-from .triangle_sums import blocks_csr, triangle_sums
+from .triangle_sums import blocks_csr, f64, triangle_sums
 
 
 def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, slopes: float,
                      base_stiffness: float = 0.0, offsets: np.ndarray | None = None,
-                     chunk: int = 1 << 17, by_rows: bool = False
+                     chunk: int = 1 << 20, by_rows: bool = False
                      ) -> tuple[sp.csr_matrix, np.ndarray]:
     """(M, b) of one fit round: the samples matched to their closest points on the
     micro-surface of displacements ``d`` (and base vertices moved by ``offsets`` (nb, 3)),
@@ -36,8 +36,11 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, s
     The system is summed in one compiled pass over the samples: per micro-triangle over the
     displacements alone (:mod:`.triangle_sums`), with the base also per (micro-vertex, base
     face) pair and per base face (:mod:`.joint_sums`). ``by_rows``: from the rows themselves
-    (the general way, which the tests and ``bench/fit_bench.py`` compare them with), ``chunk``
-    samples at a time (the rows of all samples at once took 6 KB per sample at the peak).
+    (the general way, which the tests and ``bench/fit_bench.py`` compare them with; the rows
+    of all samples at once took 6 KB per sample at the peak). Either way the samples are
+    matched and summed ``chunk`` at a time, in order (the same sums as all at once): the
+    matches of all samples together (closest points, triangles, corners, barycentrics and the
+    corners' positions, about 170 bytes a sample) were the fit's peak on large inputs.
     """
     W = mm.topology.interp.tocsr()
     n, nb = mm.n_vertices, mm.base.n_vertices
@@ -45,19 +48,17 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, s
     P, D = W @ (mm.base.vertices + offsets), mm.micro_vertex_directions()
     T = mm.topology.triangles                  # the non-degenerate micro-triangles
     pts, normals, weights = samples
-    X = P + D * d[:, None]
-    cp, tri, _ = ClosestPointIndex(X, T).query(pts)
-    corners = T[tri]                                          # (s, 3)
-    B = barycentrics(cp, X[corners])
+    # The rows take about 6 KB a sample: fewer at a time.
+    matches = _matches(P + D * d[:, None], T, pts, min(chunk, 1 << 17) if by_rows else chunk)
     joint = base_stiffness > 0
     if by_rows:
-        M, b = _row_system(corners, B, pts, normals, weights, P, D, W if joint else None,
-                           n + 3 * nb if joint else n, slopes, chunk)
+        M, b = _row_system(matches, pts, normals, weights, P, D, W if joint else None,
+                           n + 3 * nb if joint else n, slopes)
     elif joint:
-        M, b = joint_system(corners, B, pts, normals, weights, tri, T, P, D, W, mm.topology,
+        M, b = joint_system(matches, pts, normals, weights, T, P, D, W, mm.topology,
                             mm.base.faces, slopes)
     else:
-        M, b = _displacement_system(corners, B, pts, normals, weights, tri, T, P, D, slopes)
+        M, b = _displacement_system(matches, pts, normals, weights, T, P, D, slopes)
     # Smoothness of the displacement as a length (|D_k| d_k): the same weight whether the
     # directions are unit or scaled by folded bounds (``core.bounds.baked``).
     LS = uniform_laplacian(n, T) @ sp.diags(np.linalg.norm(D, axis=1))
@@ -70,29 +71,39 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, s
     return (M + sp.block_diag(reg)).tocsr(), b + np.concatenate(prior)
 
 
-def _displacement_system(corners, B, pts, normals, weights, tri, T, P, D, slopes):
+def _matches(X: np.ndarray, T: np.ndarray, pts: np.ndarray, chunk: int):
+    """Per ``chunk`` samples in order: (slice of the samples, matched micro-triangles (c,),
+    their corners (c, 3), the closest points' barycentrics (c, 3)) on the micro-surface of
+    micro-vertices ``X`` and triangles ``T``."""
+    index = ClosestPointIndex(X, T)
+    for lo in range(0, len(pts), chunk):
+        part = slice(lo, lo + chunk)
+        cp, tri, _ = index.query(pts[part])
+        corners = np.ascontiguousarray(T[tri], dtype=np.int64)
+        yield part, tri, corners, barycentrics(cp, X[corners])
+
+
+def _displacement_system(matches, pts, normals, weights, T, P, D, slopes):
     """(M, b) over the displacements alone: each micro-triangle's 3 x 3 block, summed over its
     samples by :func:`triangle_sums`, scattered into M (``_row_system`` without ``W`` gives
     the same system from the rows)."""
     n, m = len(P), len(T)
     G = np.zeros((m, 3, 3))
     b = np.zeros(n)
-    f64 = lambda x: np.ascontiguousarray(x, dtype=np.float64)  # noqa: E731
-    triangle_sums(np.ascontiguousarray(tri, dtype=np.int64),
-                  np.ascontiguousarray(corners, dtype=np.int64), f64(B), f64(pts), f64(normals),
-                  f64(weights), f64(P), f64(D), float(slopes), G, b)
+    P, D = f64(P), f64(D)
+    for part, tri, corners, B in matches:
+        triangle_sums(tri, corners, B, f64(pts[part]), f64(normals[part]), f64(weights[part]),
+                      P, D, float(slopes), G, b)
     return blocks_csr(G, T, n), b
 
 
-def _row_system(corners, B, pts, normals, weights, P, D, W, size, slopes, chunk):
+def _row_system(matches, pts, normals, weights, P, D, W, size, slopes):
     """(M, b) from the rows themselves: over the displacements and, with ``W``, the base
     vertices."""
     n = len(P)
     M, b = sp.csr_matrix((size, size)), np.zeros(size)
-    for lo in range(0, len(pts), chunk):
-        part = slice(lo, lo + chunk)
-        C, N, t, w = _rows(corners[part], B[part], pts[part], normals[part], weights[part],
-                           n, slopes)
+    for part, _, corners, B in matches:
+        C, N, t, w = _rows(corners, B, pts[part], normals[part], weights[part], n, slopes)
         A, rhs = _columns(C, N, t, P, D, W)
         AtW = A.T.multiply(w[None, :]).tocsr()
         M = M + AtW @ A

@@ -43,6 +43,11 @@ def triangle_sums(tri, corners, B, pts, normals, weights, P, D, slopes, G, b):  
             b[corners[s, i]] += w * (a[i] * point + slopes * g[i] * (hs - 3.0 * h[i]))
 
 
+def f64(x: np.ndarray) -> np.ndarray:
+    """``x`` as a contiguous float64 array (no copy where it is one), as the kernels take it."""
+    return np.ascontiguousarray(x, dtype=np.float64)
+
+
 def block_entries(G: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(rows, cols, values) of the symmetric 3 x 3 blocks ``G`` (m, 3, 3), upper triangle
     stored, at the corners ``T`` (m, 3) of their micro-triangles (duplicates to be summed)."""
