@@ -60,7 +60,7 @@ def main() -> None:
         t_cg, x_cg = timed(lambda: solve_normal_equations(M, b, mm.displacements,
                                                           callback=lambda _: iters.append(1)))
         t_fit, _ = timed(lambda: fit_displacements(mm, ref, samples=samples))
-        rec = {"level": level, "micro_vertices": mm.n_vertices, "samples": len(samples[0]),
+        rec = {"level": level, "micro_vertices": mm.n_vertices, "samples": len(samples),
                "assemble_s": t_asm, "assemble_rows_s": t_rows, "assemble_joint_s": t_joint,
                "assemble_joint_rows_s": t_joint_rows, "superlu_s": t_lu, "cg_s": t_cg,
                "cg_iterations": len(iters),

@@ -16,7 +16,7 @@ from core.microtopology import balance_levels
 
 def mean_distance(reference: TriMesh, mm: MicroMesh) -> float:
     """Area-weighted mean distance from dense reference samples to the micro-surface."""
-    pts, _, w = reference_samples(reference)
+    pts, _, w = reference_samples(reference).arrays()
     t = mm.tessellate()
     _, _, d = ClosestPointIndex(t.vertices, t.triangles).query(pts)
     return float((d * w).sum() / w.sum())
@@ -135,6 +135,31 @@ def test_the_compiled_systems_are_the_rows_system(bumpy, mixed):
         np.testing.assert_allclose(bj, bjr, rtol=0, atol=1e-12 * abs(bjr).max())
 
 
+def test_samples_made_a_run_of_faces_at_a_time_sum_the_same_system(bumpy):
+    """The samples are made in chunks (whole faces of one level), in one order whatever the
+    chunk size; the fit's sums over them, chunk by chunk, are the same bits as in one go."""
+    ref, baked = bumpy
+    samples = reference_samples(ref, sample_area=0.2 * ref.face_areas.mean())
+    assert len(np.unique(samples.level)) > 1                 # mixed levels, several groups
+    pts, normals, w = samples.arrays()
+    small = list(samples.chunks(7))
+    assert len(small) > 10 and small[0][0].start == 0 and small[-1][0].stop == len(samples)
+    np.testing.assert_array_equal(np.concatenate([p for _, p, _, _ in small]), pts)
+    np.testing.assert_array_equal(np.concatenate([n for _, _, n, _ in small]), normals)
+    assert np.isclose(w.sum(), len(w)) and len(w) == len(samples)
+    faces = ref.faces[samples._faces[0]]
+    assert np.allclose(pts[:4].mean(0), ref.vertices[faces].mean(0))   # centroids of the face
+    for stiffness in (0.0, 1e-3):
+        M, b = normal_equations(baked, baked.displacements, samples, 1e-3, 0.1,
+                                base_stiffness=stiffness)
+        Mc, bc = normal_equations(baked, baked.displacements, samples, 1e-3, 0.1,
+                                  base_stiffness=stiffness, chunk=50)
+        assert (M != Mc).nnz == 0 and np.array_equal(b, bc)
+    e, ec = surface_errors(baked, samples), surface_errors(baked, samples, chunk=50)
+    np.testing.assert_allclose(e[0], ec[0], rtol=1e-12)
+    np.testing.assert_allclose(e[1], ec[1], rtol=1e-12)
+
+
 def test_bad_settings(bumpy):
     ref, baked = bumpy
     with pytest.raises(FitError):
@@ -160,7 +185,7 @@ def test_large_reference_faces_are_sampled_densely():
     samples as dense as the micro-triangles the fit follows it; four samples per reference
     face leave most micro-vertices to the smoothness term, which rounds it off."""
     ref = _roof()
-    pts, _, w = reference_samples(ref, sample_area=1e-3)
+    pts, _, w = reference_samples(ref, sample_area=1e-3).arrays()
     assert len(pts) >= 1000 and np.isclose(w.sum(), len(w))
     bv = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
     mm = MicroMesh.flat(TriMesh(bv, np.array([[0, 1, 2], [0, 2, 3]])), np.array([4, 4]))

@@ -30,9 +30,9 @@ from __future__ import annotations
 
 from .lsq import fit_displacements, fit_micromesh
 from .residuals import surface_errors
-from .samples import FitError, fit_samples, reference_samples
+from .samples import FitError, Samples, fit_samples, reference_samples
 from .solve import solve_normal_equations
 from .system import normal_equations
 
-__all__ = ["FitError", "fit_displacements", "fit_micromesh", "fit_samples", "normal_equations",
+__all__ = ["FitError", "Samples", "fit_displacements", "fit_micromesh", "fit_samples", "normal_equations",
            "reference_samples", "solve_normal_equations", "surface_errors"]

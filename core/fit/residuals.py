@@ -5,16 +5,16 @@ import numpy as np
 
 from ..closest import ClosestPointIndex
 from ..micromesh import MicroMesh
+from .samples import Samples
 
 
-def surface_errors(mm: MicroMesh, samples, chunk: int = 1 << 20
+def surface_errors(mm: MicroMesh, samples: Samples, chunk: int = 1 << 20
                    ) -> tuple[np.ndarray, np.ndarray]:
     """(distance, normal) per base face (nf,) of the reference samples (of
-    :func:`reference_samples`) whose nearest micro-surface point lies on that face: the
+    :class:`.samples.Samples`) whose nearest micro-surface point lies on that face: the
     weighted squared distance, and the weighted squared difference between the sample's normal
     and the micro-triangle's (what shading sees). Where the fitted micro-mesh still misses the
     reference. The samples are matched ``chunk`` at a time."""
-    pts, normals, weights = samples
     tess = mm.tessellate()
     V, T = tess.vertices, tess.triangles
     index = ClosestPointIndex(V, T)
@@ -22,11 +22,9 @@ def surface_errors(mm: MicroMesh, samples, chunk: int = 1 << 20
     tn /= np.maximum(np.linalg.norm(tn, axis=1, keepdims=True), 1e-300)
     nf = mm.base.n_faces
     distance, normal = np.zeros(nf), np.zeros(nf)
-    for lo in range(0, len(pts), chunk):
-        part = slice(lo, lo + chunk)
-        _, tri, dist = index.query(pts[part])
-        face, w = tess.triangle_face[tri], weights[part]
+    for _, pts, normals, w in samples.chunks(chunk):
+        _, tri, dist = index.query(pts)
+        face = tess.triangle_face[tri]
         distance += np.bincount(face, weights=w * dist ** 2, minlength=nf)
-        normal += np.bincount(face, weights=w * ((tn[tri] - normals[part]) ** 2).sum(1),
-                              minlength=nf)
+        normal += np.bincount(face, weights=w * ((tn[tri] - normals) ** 2).sum(1), minlength=nf)
     return distance, normal

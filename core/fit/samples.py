@@ -26,15 +26,60 @@ def _subtriangle_centroids(level: int) -> np.ndarray:
     return np.stack([1.0 - u - v, u, v], 1)
 
 
-def reference_samples(reference: TriMesh, sample_area: float | None = None
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(points (s, 3), unit normals (s, 3), weights (s,)) on the reference's faces.
+class Samples:
+    """Area-weighted points and unit normals on a reference's faces, made a run of faces at a
+    time (:meth:`chunks`) rather than held: at a few per micro-triangle they are the largest
+    arrays of a fit (56 bytes a sample). Only the weights (s,) are kept.
 
-    Each face gets the centroids of its uniform subdivision at the level that makes a sample
-    cover at most ``sample_area`` (4 samples at least, 4**5 at most), so large faces (the flat
-    sides of CAD parts) are sampled as densely as the micro-mesh they must hold flat. Weights
-    are the area each sample stands for, over their mean.
+    Each face gets the centroids of its uniform subdivision at its level (4**level samples);
+    the samples are ordered by level, then face, then centroid. Weights are the area each
+    sample stands for, over their mean.
     """
+
+    def __init__(self, reference: TriMesh, level: np.ndarray):
+        self.reference = reference
+        self.level = np.asarray(level, dtype=np.int64)
+        self._faces = np.argsort(self.level, kind="stable")      # level by level, in order
+        per_face = 4 ** self.level[self._faces]
+        self._start = np.concatenate([[0], np.cumsum(per_face)])
+        areas = reference.face_areas
+        w = np.concatenate([np.repeat(areas[f] / 4 ** lv, 4 ** lv) for lv, f in self._groups()])
+        self.weights = w / max(w.mean(), 1e-300)
+
+    def __len__(self) -> int:
+        return int(self._start[-1])
+
+    def _groups(self):
+        for lv in np.unique(self.level):
+            yield int(lv), np.flatnonzero(self.level == lv)
+
+    def chunks(self, size: int = 1 << 20):
+        """(slice of the samples, points (c, 3), normals (c, 3), weights (c,)) in order, about
+        ``size`` samples each (whole faces of one level)."""
+        corners_all, normals_all = self.reference.vertices, self.reference.face_normals
+        faces_all = self.reference.faces
+        pos = 0
+        for lv, faces in self._groups():
+            w = _subtriangle_centroids(lv)
+            step = max(1, size // len(w))
+            for lo in range(0, len(faces), step):
+                f = faces[lo:lo + step]
+                pts = np.einsum("sk,fkc->fsc", w, corners_all[faces_all[f]]).reshape(-1, 3)
+                part = slice(pos, pos + len(pts))
+                pos += len(pts)
+                yield part, pts, np.repeat(normals_all[f], len(w), axis=0), self.weights[part]
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(points (s, 3), normals (s, 3), weights (s,)) all at once."""
+        parts = list(self.chunks())
+        return (np.concatenate([p for _, p, _, _ in parts]),
+                np.concatenate([n for _, _, n, _ in parts]), self.weights)
+
+
+def reference_samples(reference: TriMesh, sample_area: float | None = None) -> Samples:
+    """:class:`Samples` on the reference's faces, each face at the level that makes a sample
+    cover at most ``sample_area`` (4 samples at least, 4**5 at most), so large faces (the flat
+    sides of CAD parts) are sampled as densely as the micro-mesh they must hold flat."""
     areas = reference.face_areas
     level = np.ones(len(areas), dtype=np.int64)
     if sample_area is not None:
@@ -43,18 +88,7 @@ def reference_samples(reference: TriMesh, sample_area: float | None = None
         with np.errstate(divide="ignore"):
             want = np.ceil(np.log(np.maximum(areas / sample_area, 1.0)) / np.log(4.0))
         level = np.clip(want.astype(np.int64), 1, _MAX_LEVEL)
-    corners = reference.vertices[reference.faces]
-    face_normals = reference.face_normals
-    pts, normals, weights = [], [], []
-    for lv in np.unique(level):
-        faces = np.flatnonzero(level == lv)
-        w = _subtriangle_centroids(int(lv))
-        pts.append(np.einsum("sk,fkc->fsc", w, corners[faces]).reshape(-1, 3))
-        normals.append(np.repeat(face_normals[faces], len(w), axis=0))
-        weights.append(np.repeat(areas[faces] / len(w), len(w)))
-    weights = np.concatenate(weights)
-    return (np.concatenate(pts), np.concatenate(normals),
-            weights / max(weights.mean(), 1e-300))
+    return Samples(reference, level)
 
 
 def fit_samples(mm: MicroMesh, reference: TriMesh, density: float = 2.0):

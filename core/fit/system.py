@@ -18,6 +18,7 @@ from ..closest import ClosestPointIndex
 from ..laplacian import uniform_laplacian
 from ..micromesh import MicroMesh
 from .joint_sums import joint_system
+from .samples import Samples
 from .triangle_sums import blocks_csr, f64, triangle_sums
 
 
@@ -47,43 +48,56 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, s
     offsets = np.zeros((nb, 3)) if offsets is None else offsets
     P, D = W @ (mm.base.vertices + offsets), mm.micro_vertex_directions()
     T = mm.topology.triangles                  # the non-degenerate micro-triangles
-    pts, normals, weights = samples
     # The rows take about 6 KB a sample: fewer at a time.
-    matches = _matches(P + D * d[:, None], T, pts, min(chunk, 1 << 17) if by_rows else chunk)
+    matches = _matches(P + D * d[:, None], T, samples, min(chunk, 1 << 17) if by_rows else chunk)
     joint = base_stiffness > 0
     if by_rows:
-        M, b = _row_system(matches, pts, normals, weights, P, D, W if joint else None,
-                           n + 3 * nb if joint else n, slopes)
+        M, b = _row_system(matches, P, D, W if joint else None, n + 3 * nb if joint else n,
+                           slopes)
     elif joint:
-        M, b = joint_system(matches, pts, normals, weights, T, P, D, W, mm.topology,
-                            mm.base.faces, slopes)
+        M, b = joint_system(matches, T, P, D, W, mm.topology, mm.base.faces, slopes)
     else:
-        M, b = _displacement_system(matches, pts, normals, weights, T, P, D, slopes)
+        M, b = _displacement_system(matches, T, P, D, slopes)
     # Smoothness of the displacement as a length (|D_k| d_k): the same weight whether the
     # directions are unit or scaled by folded bounds (``core.bounds.baked``).
-    LS = uniform_laplacian(n, T) @ sp.diags(np.linalg.norm(D, axis=1))
-    reg = [smoothness * (LS.T @ LS) + 1e-9 * sp.eye(n)]
-    prior = [1e-9 * d]
-    if joint:
-        k = base_stiffness * weights.sum() * (1 + (3 * slopes if slopes > 0 else 0)) / nb
-        reg.append(k * sp.eye(3 * nb))
-        prior.append(-k * offsets.T.reshape(-1))        # holds the offsets, not the increments
-    return (M + sp.block_diag(reg)).tocsr(), b + np.concatenate(prior)
+    LS = (uniform_laplacian(n, T) @ sp.diags(np.linalg.norm(D, axis=1))).tocsr()
+    R = (smoothness * (LS.T.tocsr() @ LS) + 1e-9 * sp.eye(n, format="csr")).tocsr()
+    del LS
+    b[:n] += 1e-9 * d
+    if not joint:
+        return _sorted(M + R), b
+    # The base's rows of the regularisation: none but the stiffness on the diagonal (added in
+    # CSR: a block_diag goes through triplets, as large as M at a million unknowns).
+    size = M.shape[0]
+    R = sp.csr_matrix((R.data, R.indices, np.concatenate(
+        [R.indptr, np.full(size - n, R.indptr[-1])])), shape=(size, size))
+    k = base_stiffness * samples.weights.sum() * (1 + (3 * slopes if slopes > 0 else 0)) / nb
+    stiff = np.zeros(size)
+    stiff[n:] = k
+    b[n:] -= k * offsets.T.reshape(-1)                # holds the offsets, not the increments
+    return _sorted(M + R + sp.diags(stiff, format="csr")), b
 
 
-def _matches(X: np.ndarray, T: np.ndarray, pts: np.ndarray, chunk: int):
-    """Per ``chunk`` samples in order: (slice of the samples, matched micro-triangles (c,),
-    their corners (c, 3), the closest points' barycentrics (c, 3)) on the micro-surface of
-    micro-vertices ``X`` and triangles ``T``."""
+def _sorted(M) -> sp.csr_matrix:
+    """``M`` as CSR with each row's columns in order (the solver's products then sum in one
+    order whichever way the system was added up)."""
+    M = M.tocsr()
+    M.sort_indices()
+    return M
+
+
+def _matches(X: np.ndarray, T: np.ndarray, samples: Samples, chunk: int):
+    """Per about ``chunk`` samples in order: (points (c, 3), normals (c, 3), weights (c,),
+    matched micro-triangles (c,), their corners (c, 3), the closest points' barycentrics
+    (c, 3)) on the micro-surface of micro-vertices ``X`` and triangles ``T``."""
     index = ClosestPointIndex(X, T)
-    for lo in range(0, len(pts), chunk):
-        part = slice(lo, lo + chunk)
-        cp, tri, _ = index.query(pts[part])
+    for _, pts, normals, weights in samples.chunks(chunk):
+        cp, tri, _ = index.query(pts)
         corners = np.ascontiguousarray(T[tri], dtype=np.int64)
-        yield part, tri, corners, barycentrics(cp, X[corners])
+        yield pts, normals, weights, tri, corners, barycentrics(cp, X[corners])
 
 
-def _displacement_system(matches, pts, normals, weights, T, P, D, slopes):
+def _displacement_system(matches, T, P, D, slopes):
     """(M, b) over the displacements alone: each micro-triangle's 3 x 3 block, summed over its
     samples by :func:`triangle_sums`, scattered into M (``_row_system`` without ``W`` gives
     the same system from the rows)."""
@@ -91,19 +105,19 @@ def _displacement_system(matches, pts, normals, weights, T, P, D, slopes):
     G = np.zeros((m, 3, 3))
     b = np.zeros(n)
     P, D = f64(P), f64(D)
-    for part, tri, corners, B in matches:
-        triangle_sums(tri, corners, B, f64(pts[part]), f64(normals[part]), f64(weights[part]),
-                      P, D, float(slopes), G, b)
+    for pts, normals, weights, tri, corners, B in matches:
+        triangle_sums(tri, corners, B, f64(pts), f64(normals), f64(weights), P, D,
+                      float(slopes), G, b)
     return blocks_csr(G, T, n), b
 
 
-def _row_system(matches, pts, normals, weights, P, D, W, size, slopes):
+def _row_system(matches, P, D, W, size, slopes):
     """(M, b) from the rows themselves: over the displacements and, with ``W``, the base
     vertices."""
     n = len(P)
     M, b = sp.csr_matrix((size, size)), np.zeros(size)
-    for part, _, corners, B in matches:
-        C, N, t, w = _rows(corners, B, pts[part], normals[part], weights[part], n, slopes)
+    for pts, normals, weights, _, corners, B in matches:
+        C, N, t, w = _rows(corners, B, pts, normals, weights, n, slopes)
         A, rhs = _columns(C, N, t, P, D, W)
         AtW = A.T.multiply(w[None, :]).tocsr()
         M = M + AtW @ A
