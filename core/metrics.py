@@ -8,7 +8,6 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 
 # ---------------------------------------------------------------------------- images
@@ -44,62 +43,14 @@ def isotropy(vertices: np.ndarray, faces: np.ndarray) -> float:
 
 
 # ----------------------------------------------------------------- geometric error
-def point_triangle_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Euclidean distance from points ``p`` (n,3) to triangles (a, b, c) (n,3 each), row-wise
-    (Ericson's closest-point regions, vectorised)."""
-    ab, ac, ap = b - a, c - a, p - a
-    d1, d2 = (ab * ap).sum(1), (ac * ap).sum(1)
-    bp = p - b
-    d3, d4 = (ab * bp).sum(1), (ac * bp).sum(1)
-    cp = p - c
-    d5, d6 = (ab * cp).sum(1), (ac * cp).sum(1)
-    vc = d1 * d4 - d3 * d2
-    vb = d5 * d2 - d1 * d6
-    va = d3 * d6 - d5 * d4
-    den = va + vb + vc
-    safe = np.where(np.abs(den) > 1e-300, den, 1.0)
-    v = vb / safe
-    w = vc / safe
-    q = a + ab * v[:, None] + ac * w[:, None]                       # interior
-    # edges
-    t_ab = np.where(d1 - d3 != 0, d1 / np.where(d1 - d3 != 0, d1 - d3, 1), 0)
-    t_ac = np.where(d2 - d6 != 0, d2 / np.where(d2 - d6 != 0, d2 - d6, 1), 0)
-    e = (d4 - d3) + (d5 - d6)
-    t_bc = np.where(e != 0, (d4 - d3) / np.where(e != 0, e, 1), 0)
-    m_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-    m_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-    m_bc = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
-    q = np.where(m_bc[:, None], b + (c - b) * t_bc[:, None], q)
-    q = np.where(m_ac[:, None], a + ac * t_ac[:, None], q)
-    q = np.where(m_ab[:, None], a + ab * t_ab[:, None], q)
-    # vertices
-    q = np.where(((d6 >= 0) & (d5 <= d6))[:, None], c, q)
-    q = np.where(((d3 >= 0) & (d4 <= d3))[:, None], b, q)
-    q = np.where(((d1 <= 0) & (d2 <= 0))[:, None], a, q)
-    return np.linalg.norm(p - q, axis=1)
+def distance_to_mesh(points: np.ndarray, vertices: np.ndarray, triangles: np.ndarray
+                     ) -> np.ndarray:
+    """Exact distance from each point to the triangle mesh (``core.closest``'s BVH)."""
+    from .closest import ClosestPointIndex
 
-
-def distance_to_mesh(points: np.ndarray, vertices: np.ndarray, triangles: np.ndarray,
-                     candidates: int = 16, chunk: int = 200_000) -> np.ndarray:
-    """Distance from each point to the triangle mesh, exact over the ``candidates`` triangles
-    whose centroids are nearest (a KD-tree; exact for dense meshes of even triangles)."""
-    v = np.asarray(vertices, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64)
     t = t[(t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 0] != t[:, 2])]
-    cen = v[t].mean(axis=1)
-    tree = cKDTree(cen)
-    k = min(candidates, len(t))
-    pts = np.asarray(points, dtype=np.float64)
-    out = np.empty(len(pts))
-    for s in range(0, len(pts), chunk):
-        p = pts[s:s + chunk]
-        _, idx = tree.query(p, k=k)
-        idx = idx.reshape(len(p), k)
-        tri = t[idx.reshape(-1)]
-        pr = np.repeat(p, k, axis=0)
-        d = point_triangle_distance(pr, v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]])
-        out[s:s + chunk] = d.reshape(len(p), k).min(axis=1)
-    return out
+    return ClosestPointIndex(vertices, t).query(points)[2]
 
 
 def geometric_error(ref_vertices: np.ndarray, ref_vertex_areas: np.ndarray, vertices: np.ndarray,
