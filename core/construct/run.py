@@ -18,7 +18,7 @@ import torch
 from ..cameras import Cameras
 from ..lod import effective_micro_triangles
 from ..losses import mean_edge_length
-from ..runtime.memory import keep_large_allocations, release_memory
+from ..runtime.memory import keep_large_allocations, map_large_allocations, release_memory
 from ..mesh import TriMesh
 from ..normalization import unit_sphere_normalization
 from ..micromesh import MicroMesh
@@ -61,8 +61,9 @@ def construct(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
     are the input's); displacements start from projection baking at those levels and are
     optimised as usual (reparameterisation, L_sv, rendering loss) within the settings' budget.
 
-    Large freed buffers stay in the heap while it runs (``core.runtime.memory``; the policy stays set
-    for the process) and the free heap goes back to the OS when it returns. On CUDA, torch's
+    Large freed buffers stay in the heap while the optimiser runs and have mappings of their
+    own after it (``core.runtime.memory``; the policies stay set for the process); the free
+    heap goes back to the OS when it returns. On CUDA, torch's
     deterministic algorithms are on while it runs (``core.runtime.determinism``).
     """
     keep_large_allocations()
@@ -185,6 +186,7 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     # The optimiser's state (its solver, moments, the renderer's last buffers) and the
     # training images are not needed after the loop: free them before the fit's peak.
     del params, target_all
+    map_large_allocations()
     result = finalise(run, mm, reference, base, t_start, it_done, schedule.stopped_early)
     result.metrics["warnings"] = warnings
     result.metrics["estimate"] = {"seconds": guess.seconds, "peak_bytes": guess.peak_bytes}
