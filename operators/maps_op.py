@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 from bpy.props import IntProperty
 
-from ..core.maps import Maps, bake_maps, transfer_textures, unit_directions
+from ..core.maps import Maps, bake_maps, transfer_normal_map, transfer_textures, unit_directions
 from ..core.micromesh import MicroMesh
 from . import bl_mesh, job, source_texture, writeback
 from .images import image
@@ -111,14 +111,18 @@ def _material(name: str, normal: bpy.types.Image) -> bpy.types.Material:
 
 def bake_with_textures(mm: MicroMesh, resolution: int, textures, progress, should_stop):
     """(maps, the source's textures on their atlas: one per ``textures.images``, or an empty
-    list): the worker's part of Bake Maps."""
+    list): the worker's part of Bake Maps. A normal map is carried into the atlas' tangent
+    frame about the surface (the maps object renders it on the displaced surface)."""
     maps = bake_maps(mm, resolution, progress=progress, should_stop=should_stop)
-    carried = []
-    if textures is not None:
-        progress({"phase": "texture", "iteration": 0, "total": 1})
-        carried = transfer_textures(mm, maps, textures.mesh, textures.uv,
-                                    [t.pixels for t in textures.images])
-    return maps, carried
+    if textures is None:
+        return maps, []
+    progress({"phase": "texture", "iteration": 0, "total": 1})
+    plain = [t for t in textures.images if t.socket != source_texture.NORMAL]
+    done = iter(transfer_textures(mm, maps, textures.mesh, textures.uv,
+                                  [t.pixels for t in plain]) if plain else [])
+    return maps, [transfer_normal_map(mm, maps, textures.mesh, textures.uv, t.pixels)
+                  if t.socket == source_texture.NORMAL else next(done)
+                  for t in textures.images]
 
 
 def carry_textures(obj, textures, carried: list) -> None:
@@ -128,7 +132,7 @@ def carry_textures(obj, textures, carried: list) -> None:
     source_texture.copy_constants(mat, textures)
     for like, pixels in zip(textures.images, carried):
         img = source_texture.make_image(f"{obj.name}_{like.slug}", pixels, like)
-        source_texture.link_input(mat, img, like)
+        source_texture.link_input(mat, img, like, textures.normal_strength)
 
 
 class MICROMESH_OT_bake_maps(bpy.types.Operator):

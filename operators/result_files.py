@@ -10,7 +10,7 @@ import numpy as np
 
 from ..core.io.maps_files import base_gltf, png
 from ..core.io.micromesh_export import micromesh_files
-from ..core.maps import rebuild_error
+from ..core.maps import rebuild_error, transfer_normal_map
 from . import images, maps_op, source_texture, writeback
 from .sources import export_y_up
 
@@ -58,10 +58,22 @@ def gltf_textures(textures, carried: list) -> dict:
     return out
 
 
+def engine_normal_map(mm, maps, textures) -> np.ndarray:
+    """The glTF base's normal map: the micro-surface's relief (``maps.normal``) or, where the
+    source has a tangent-space normal map, the source's shading normals in the base's tangent
+    frame, which hold that relief and the source's map together."""
+    like = next((t for t in textures.images if t.socket == source_texture.NORMAL), None) \
+        if textures is not None else None
+    if like is None:
+        return maps.normal
+    return transfer_normal_map(mm, maps, textures.mesh, textures.uv, like.pixels,
+                               about_base=True)
+
+
 def write_maps(context, outcome, source, resolution: int, out, progress) -> dict:
     """Height and normal maps: ``<source>_maps`` in the scene (images packed) and, for
-    engines, ``NAME_height.exr``, ``NAME_normal.png`` (16-bit) and ``NAME_base.gltf`` (UVs,
-    normals, tangents, the normal map); where the source's material has textures, they are
+    engines, ``NAME_height.exr``, ``NAME_normal.png`` (16-bit; :func:`engine_normal_map`) and
+    ``NAME_base.gltf`` (UVs, normals, tangents, the normal map); where the source's material has textures, they are
     carried onto the atlas too (base colour, metallic and roughness, emission: the glTF's
     ``NAME_basecolor.png``, ``NAME_metallicroughness.png``, ``NAME_emissive.png``); how well
     the height map rebuilds the micro-mesh."""
@@ -74,7 +86,7 @@ def write_maps(context, outcome, source, resolution: int, out, progress) -> dict
     obj = maps_op.maps_object(context, source, mm, maps, f"{source.name}_maps")
     img = images.image(f"{name}_height_file", maps.height, path=str(out.temp("_height.exr")))
     bpy.data.images.remove(img)
-    out.temp("_normal.png").write_bytes(png(maps.normal))
+    out.temp("_normal.png").write_bytes(png(engine_normal_map(mm, maps, textures)))
     uris = {}
     if carried:
         maps_op.carry_textures(obj, textures, carried)

@@ -1,7 +1,8 @@
 """The source's textures for Bake Maps: the images that feed its material's Principled BSDF
-(base colour, metallic, roughness, alpha, emission), read as arrays with the UVs of its
-triangles, and the carried textures (``core.maps.transfer_textures``) made images in the maps
-object's material, each linked to the input it fed, so the baked asset keeps its look."""
+(base colour, metallic, roughness, alpha, emission, and a tangent-space normal map through a
+Normal Map node), read as arrays with the UVs of its triangles, and the carried textures
+(``core.maps.transfer_textures``, ``transfer_normal_map``) made images in the maps object's
+material, each linked to the input it fed, so the baked asset keeps its look."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -14,8 +15,11 @@ from . import bl_mesh
 from .images import image
 
 CARRIED = ("Base Color", "Metallic", "Roughness", "Alpha", "Emission Color")
-"""The Principled BSDF inputs whose image textures are carried. A normal map of the source is
-not: its tangent space is the source's UVs', and the maps object has its own normal map."""
+"""The Principled BSDF inputs whose image textures are carried as they are."""
+
+NORMAL = "Normal"
+"""The input a tangent-space normal map feeds through a Normal Map node: carried into the
+atlas' tangent frame (``core.maps.transfer_normal_map``)."""
 
 CONSTANTS = ("Metallic", "Roughness", "Emission Strength")
 """Value inputs copied as they are where no texture feeds them (the emission's strength
@@ -37,6 +41,8 @@ class SourceImage:
 
     @property
     def slug(self) -> str:
+        if self.socket == NORMAL:        # beside the maps' own "<name>_normal"
+            return "sourcenormal"
         return self.socket.split()[0].lower() + ("color" if self.socket == "Base Color" else "")
 
     def values(self, carried: np.ndarray) -> np.ndarray:
@@ -54,6 +60,7 @@ class SourceTextures:
     uv: np.ndarray
     images: list[SourceImage]
     constants: dict = field(default_factory=dict)
+    normal_strength: float = 1.0
 
 
 def _principled_nodes(obj: bpy.types.Object):
@@ -64,16 +71,35 @@ def _principled_nodes(obj: bpy.types.Object):
         yield from (n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
 
 
+def _image_link(socket):
+    """(image, output name) of the Image Texture node linked into ``socket``, or None."""
+    for link in socket.links:
+        src = link.from_node
+        if src.type == "TEX_IMAGE" and src.image is not None and src.image.size[0] > 1:
+            return src.image, link.from_socket.name
+    return None
+
+
+def normal_map_node(bsdf):
+    """The tangent-space Normal Map node feeding ``bsdf``'s Normal from an image, or None."""
+    for link in bsdf.inputs[NORMAL].links:
+        node = link.from_node
+        if node.type == "NORMAL_MAP" and node.space == "TANGENT" \
+                and _image_link(node.inputs["Color"]) is not None:
+            return node
+    return None
+
+
 def textured_inputs(obj: bpy.types.Object):
-    """(the object's first Principled BSDF that an Image Texture node feeds directly, {input
-    name: (image, output name)} for its inputs of :data:`CARRIED` so fed), or (None, {})."""
+    """(the object's first Principled BSDF that an Image Texture node feeds, {input name:
+    (image, output name)} for its inputs of :data:`CARRIED` so fed and :data:`NORMAL` where a
+    tangent-space Normal Map node of an image feeds it), or (None, {})."""
     for bsdf in _principled_nodes(obj):
-        out = {}
-        for name in CARRIED:
-            for link in bsdf.inputs[name].links:
-                src = link.from_node
-                if src.type == "TEX_IMAGE" and src.image is not None and src.image.size[0] > 1:
-                    out[name] = (src.image, link.from_socket.name)
+        out = {name: found for name in CARRIED
+               if (found := _image_link(bsdf.inputs[name])) is not None}
+        node = normal_map_node(bsdf)
+        if node is not None:
+            out[NORMAL] = _image_link(node.inputs["Color"])
         if out:
             return bsdf, out
     return None, {}
@@ -93,7 +119,9 @@ def read(obj: bpy.types.Object) -> SourceTextures | None:
         images.append(SourceImage(socket, output, pixels.reshape(h, w, 4),
                                   img.colorspace_settings.name, bool(img.is_float)))
     constants = {k: float(bsdf.inputs[k].default_value) for k in CONSTANTS}
-    return SourceTextures(bl_mesh.mesh_to_arrays(obj), uv, images, constants)
+    node = normal_map_node(bsdf)
+    strength = float(node.inputs["Strength"].default_value) if node is not None else 1.0
+    return SourceTextures(bl_mesh.mesh_to_arrays(obj), uv, images, constants, strength)
 
 
 def make_image(name: str, pixels: np.ndarray, like: SourceImage) -> bpy.types.Image:
@@ -116,13 +144,22 @@ def copy_constants(mat: bpy.types.Material, textures: SourceTextures) -> None:
         bsdf.inputs[name].default_value = value
 
 
-def link_input(mat: bpy.types.Material, image: bpy.types.Image, like: SourceImage) -> None:
+def link_input(mat: bpy.types.Material, image: bpy.types.Image, like: SourceImage,
+               normal_strength: float = 1.0) -> None:
     """The image, through the maps' UVs, into the material's Principled BSDF input that the
-    source's image fed, from the same output."""
-    nodes, bsdf = mat.node_tree.nodes, _bsdf(mat)
+    source's image fed, from the same output; a normal map through a tangent-space Normal Map
+    node of the maps' UVs with the source's strength."""
+    nodes, bsdf, link = mat.node_tree.nodes, _bsdf(mat), mat.node_tree.links.new
     tex = nodes.new("ShaderNodeTexImage")
     tex.image, tex.label = image, f"Source {like.socket.lower()} on the atlas"
     uv = nodes.new("ShaderNodeUVMap")
     uv.uv_map = "UVMap"
-    mat.node_tree.links.new(uv.outputs["UV"], tex.inputs["Vector"])
-    mat.node_tree.links.new(tex.outputs[like.output], bsdf.inputs[like.socket])
+    link(uv.outputs["UV"], tex.inputs["Vector"])
+    if like.socket != NORMAL:
+        link(tex.outputs[like.output], bsdf.inputs[like.socket])
+        return
+    nmap = nodes.new("ShaderNodeNormalMap")
+    nmap.space, nmap.uv_map, nmap.label = "TANGENT", "UVMap", "Source normal map"
+    nmap.inputs["Strength"].default_value = normal_strength
+    link(tex.outputs["Color"], nmap.inputs["Color"])
+    link(nmap.outputs["Normal"], bsdf.inputs[NORMAL])

@@ -122,3 +122,75 @@ def test_the_source_texture_is_carried_onto_the_atlas(bumpy):
     assert np.array_equal(both[1][..., 0], color[..., 1])
     with pytest.raises(TransferError):
         transfer_textures(flat, maps, src, uv, [image, np.zeros((1, 8))])
+
+
+def _grid(n: int) -> TriMesh:
+    """The unit square in the xy plane as an n x n grid of triangle pairs."""
+    g = np.linspace(0.0, 1.0, n + 1)
+    x, y = np.meshgrid(g, g, indexing="ij")
+    v = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], 1)
+    i = np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]
+    a, b, c, d = i, i + n + 1, i + n + 2, i + 1
+    return TriMesh(v, np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3),
+                                      np.stack([a, c, d], -1).reshape(-1, 3)]))
+
+
+@pytest.mark.parametrize("mirrored", [False, True])
+def test_a_source_normal_map_is_carried_into_the_atlas_tangent_frame(mirrored):
+    """A flat source whose UVs are turned a quarter (or mirrored) against the xy plane, with a
+    constant tangent-space tilt: on the atlas the carried map, read in the atlas' own frame
+    (+u and +v of its charts in 3D, worked out here from the atlas UVs), is the same
+    object-space normal the source's map gives."""
+    from core.maps import transfer_normal_map
+
+    src = _grid(16)
+    P = src.vertices[src.faces]
+    if mirrored:        # u = x, v = -y: +u is +x, +v is -y
+        uv, du, dv = np.stack([P[..., 0], -P[..., 1]], -1), [1.0, 0, 0], [0, -1.0, 0]
+    else:               # u = y, v = 1 - x: +u is +y, +v is -x
+        uv, du, dv = np.stack([P[..., 1], 1 - P[..., 0]], -1), [0, 1.0, 0], [-1.0, 0, 0]
+    tilt = np.array([0.5, 0.2, 1.0]) / np.linalg.norm([0.5, 0.2, 1.0])
+    image = np.broadcast_to((tilt + 1) / 2, (4, 4, 3)).copy()
+    want = tilt[0] * np.array(du) + tilt[1] * np.array(dv) + tilt[2] * np.array([0, 0, 1.0])
+    base = TriMesh(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.0]]),
+                   np.array([[0, 1, 2], [0, 2, 3]]))
+    flat = MicroMesh.flat(base, [2, 2])
+    maps = bake_maps(flat, 64, padding=2)
+    carried = transfer_normal_map(flat, maps, src, uv, image)
+    assert carried.shape == (64, 64, 3) and carried.dtype == np.float32
+    face, bary = texel_faces(maps.atlas, 64, 64)
+    filled = face >= 0
+    n = carried[filled] * 2.0 - 1.0
+    # +u and +v of each base face's chart in 3D: [e1 e2] = [∂P/∂u ∂P/∂v] [d1 d2]
+    V, T = base.vertices[base.faces], maps.atlas.corner_uv
+    E = np.stack([V[:, 1] - V[:, 0], V[:, 2] - V[:, 0]], -1)            # (f, 3, 2)
+    D = np.stack([T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]], -1)            # (f, 2, 2)
+    G = E @ np.linalg.inv(D)                                             # (f, 3, 2)
+    Tu = G[..., 0] / np.linalg.norm(G[..., 0], axis=1, keepdims=True)
+    Bv = G[..., 1] / np.linalg.norm(G[..., 1], axis=1, keepdims=True)
+    f = face[filled]
+    got = n[:, :1] * Tu[f] + n[:, 1:2] * Bv[f] + n[:, 2:3] * np.array([0, 0, 1.0])
+    np.testing.assert_allclose(got, np.broadcast_to(want, got.shape), atol=2e-3)
+    with pytest.raises(ValueError):
+        transfer_normal_map(flat, maps, src, uv, image[..., :2])
+    # On a flat base the base's frame is the surface's: the same map.
+    np.testing.assert_allclose(transfer_normal_map(flat, maps, src, uv, image, about_base=True),
+                               carried, atol=1e-6)
+
+
+def test_about_the_base_the_carried_normal_map_holds_the_relief_too(bumpy):
+    """On a displaced micro-mesh whose source has a flat normal map (0.5, 0.5, 1: no tilt),
+    the map about the base is the micro-detail map ``bake_maps`` makes (the relief seen from
+    the base), up to facet against smooth normals; about the surface it is flat."""
+    from core.maps import transfer_normal_map
+
+    src = bumpy.tessellate().to_trimesh()
+    uv = src.vertices[src.faces][..., :2]                      # any UVs: the map is flat
+    image = np.full((4, 4, 3), [0.5, 0.5, 1.0])
+    maps = bake_maps(bumpy, 128)
+    surface = transfer_normal_map(bumpy, maps, src, uv, image)[maps.filled] * 2 - 1
+    base = transfer_normal_map(bumpy, maps, src, uv, image, about_base=True)[maps.filled] * 2 - 1
+    relief = maps.normal[maps.filled] * 2 - 1
+    assert np.allclose(surface, [0, 0, 1.0], atol=1e-6)
+    tilt = np.degrees(np.arccos(np.clip((base * relief).sum(1), -1, 1)))
+    assert np.median(tilt) < 3.0 and np.degrees(np.arccos(relief[:, 2].min())) > 10.0

@@ -243,6 +243,65 @@ def test_bake_maps_carries_the_source_texture_onto_the_atlas(scene):
     assert (np.abs(have_r - want[:, 1]) < 0.1).mean() > 0.8  # roughness: the source's v
 
 
+def test_bake_maps_carries_the_source_normal_map_through_a_normal_map_node(scene):
+    """A source whose Principled BSDF's Normal comes from a tangent-space Normal Map node of an
+    image (flat: RGB 0.5, 0.5, 1) at strength 0.6: the maps object's material gets that map on
+    its own atlas (non-colour data, beside the micro-detail map, not over it) through a Normal
+    Map node of the atlas' UVs at the same strength; a flat map stays flat. For engines the
+    base's normal map is the source's shading in the base's frame: the relief, tilted as the
+    micro-detail map tilts."""
+    src = scene.micromesh.source
+    me = src.data
+    corner_vertex = np.empty(len(me.loops), np.int32)
+    me.loops.foreach_get("vertex_index", corner_vertex)
+    p = bl_mesh.mesh_arrays(me)[0][corner_vertex]
+    me.uv_layers.new(name="UVMap").data.foreach_set(
+        "uv", (0.5 + 0.4 * p[:, :2]).astype(np.float32).reshape(-1))
+    img = bpy.data.images.new("bumps", 16, 16)
+    img.colorspace_settings.name = "Non-Color"
+    img.pixels.foreach_set(np.tile([0.5, 0.5, 1.0, 1.0], 256).astype(np.float32))
+    mat = bpy.data.materials.new("bumpy")
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    nodes, link = mat.node_tree.nodes, mat.node_tree.links.new
+    tex, nmap = nodes.new("ShaderNodeTexImage"), nodes.new("ShaderNodeNormalMap")
+    tex.image = img
+    nmap.inputs["Strength"].default_value = 0.6
+    bsdf = next(n for n in nodes if n.type == "BSDF_PRINCIPLED")
+    link(tex.outputs["Color"], nmap.inputs["Color"])
+    link(nmap.outputs["Normal"], bsdf.inputs["Normal"])
+    src.data.materials.append(mat)
+    assert bpy.ops.micromesh.construct(method="PROJECTION") == {"FINISHED"}
+    assert bpy.ops.micromesh.bake_maps(resolution=128) == {"FINISHED"}
+    obj = bpy.data.objects[f"{src.name}_maps"]
+    out = obj.data.materials[0]
+    bsdf = next(n for n in out.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    (nlink,) = bsdf.inputs["Normal"].links
+    node = nlink.from_node
+    assert node.type == "NORMAL_MAP" and node.space == "TANGENT" and node.uv_map == "UVMap"
+    assert node.inputs["Strength"].default_value == pytest.approx(0.6)
+    carried = node.inputs["Color"].links[0].from_node.image
+    assert carried.name == f"{src.name}_maps_sourcenormal"
+    assert carried.colorspace_settings.name == "Non-Color"
+    assert bpy.data.images.get(f"{src.name}_maps_normal") is not None   # the relief's, kept
+    got = np.empty(128 * 128 * 4, np.float32)
+    carried.pixels.foreach_get(got)
+    got = got.reshape(-1, 4)[:, :3]
+    # 0.5 as a byte is 128 / 255: a tilt of one step, turned into the atlas' frame, in steps
+    assert np.abs(got - [0.5, 0.5, 1.0]).max() < 1.6 / 255
+    from micromesh.core.maps import bake_maps
+    from micromesh.operators import result_files, source_texture, writeback
+
+    textures = source_texture.read(src)
+    assert [t.socket for t in textures.images] == ["Normal"]
+    assert textures.normal_strength == pytest.approx(0.6)
+    mm = writeback.load_outcome(bpy.data.objects[f"{src.name}_micromesh"]).micromesh
+    maps = bake_maps(mm, 128)
+    engine = result_files.engine_normal_map(mm, maps, textures)[maps.filled] * 2 - 1
+    relief = maps.normal[maps.filled] * 2 - 1
+    assert np.median((engine * relief).sum(1)) > np.cos(np.radians(5))
+
+
 def test_carried_emission_reaches_gltf_as_the_source_shows_it():
     """The emission colour goes into glTF's emissive texture times the source's Emission
     Strength (glTF's core emission stops at 1), and not at all where the strength is 0 (the

@@ -157,9 +157,12 @@ def rebuild_error(mm: MicroMesh, maps: Maps, nearest: bool = False) -> np.ndarra
 
 
 def _face_tangents(mm: MicroMesh, atlas: Atlas) -> tuple[np.ndarray, np.ndarray]:
-    """Per face the direction of +u in 3D and ±1 (mirrored UVs: -1)."""
-    V = mm.base.vertices[mm.base.faces]
-    T = atlas.corner_uv
+    return face_tangents(mm.base.vertices[mm.base.faces], atlas.corner_uv)
+
+
+def face_tangents(V: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per triangle of corners ``V`` (m, 3, 3) and corner UVs ``T`` (m, 3, 2): the direction of
+    +u in 3D (not normalised; zero without a UV gradient) and ±1 (mirrored UVs: -1)."""
     e1, e2 = V[:, 1] - V[:, 0], V[:, 2] - V[:, 0]
     d1, d2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
     det = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]

@@ -8,6 +8,8 @@ bled from their neighbours like the other maps.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..bake import nearest_points
@@ -42,30 +44,55 @@ def transfer_textures(mm: MicroMesh, maps: Maps, source: TriMesh, source_uv: np.
         source_uv: (source.n_faces, 3, 2) the UVs of its triangles' corners.
         images: its textures (base colour, roughness, ...); any number of channels each.
     """
-    uv = np.asarray(source_uv, dtype=np.float64)
-    if uv.shape != (source.n_faces, 3, 2) or not np.isfinite(uv).all():
-        raise TransferError(f"source UVs must be finite, one (3, 2) block per face "
-                            f"({source.n_faces}), got {uv.shape}")
-    imgs = [_checked(image) for image in images]
+    uv = checked_uv(source, source_uv)
+    imgs = [checked_image(image) for image in images]
+    res = maps.height.shape[0]
+    outs = [np.zeros((res, res, img.shape[2])) for img in imgs]
+    for p in source_points(mm, maps, source, chunk):
+        at = np.einsum("qk,qkc->qc", p.bary, uv[p.face])
+        for img, out in zip(imgs, outs):
+            out[p.y, p.x] = sample(img, at)
+    return [dilate(out, maps.filled, padding).astype(np.float32) for out in outs]
+
+
+@dataclass(eq=False)
+class SourcePoints:
+    """Filled texels ``y``, ``x`` (q,) of an atlas, the texel's base face ``texel_face``,
+    barycentrics ``texel_bary`` and unit ``direction`` (q, 3) (the base's, interpolated), and
+    the nearest source ``face`` (q,) and its ``bary`` (q, 3) to the point of the micro-surface
+    the texel stands for."""
+    y: np.ndarray
+    x: np.ndarray
+    texel_face: np.ndarray
+    texel_bary: np.ndarray
+    direction: np.ndarray
+    face: np.ndarray
+    bary: np.ndarray
+
+
+def source_points(mm: MicroMesh, maps: Maps, source: TriMesh, chunk: int = 1 << 20):
+    """:class:`SourcePoints` of ``maps``' filled texels, ``chunk`` texels at a time."""
     res = maps.height.shape[0]
     face, bary = texel_faces(maps.atlas, res, res)
-    filled = face >= 0
-    ys, xs = np.nonzero(filled)
-    outs = [np.zeros((res, res, img.shape[2])) for img in imgs]
+    ys, xs = np.nonzero(face >= 0)
     U = unit_directions(mm)
     for s in range(0, len(ys), chunk):
         y, x = ys[s:s + chunk], xs[s:s + chunk]
         P, n = base_point(mm, U, face[y, x], bary[y, x])
-        p = P + n * maps.height[y, x, None]
-        near, sf, _ = nearest_points(p, source)
+        near, sf, _ = nearest_points(P + n * maps.height[y, x, None], source)
         corners = source.vertices[source.faces[sf]]
-        at = np.einsum("qk,qkc->qc", barycentrics(near, corners), uv[sf])
-        for img, out in zip(imgs, outs):
-            out[y, x] = sample(img, at)
-    return [dilate(out, filled, padding).astype(np.float32) for out in outs]
+        yield SourcePoints(y, x, face[y, x], bary[y, x], n, sf, barycentrics(near, corners))
 
 
-def _checked(image) -> np.ndarray:
+def checked_uv(source: TriMesh, source_uv: np.ndarray) -> np.ndarray:
+    uv = np.asarray(source_uv, dtype=np.float64)
+    if uv.shape != (source.n_faces, 3, 2) or not np.isfinite(uv).all():
+        raise TransferError(f"source UVs must be finite, one (3, 2) block per face "
+                            f"({source.n_faces}), got {uv.shape}")
+    return uv
+
+
+def checked_image(image) -> np.ndarray:
     img = np.asarray(image, dtype=np.float64)
     if img.ndim == 2:
         img = img[..., None]
