@@ -34,13 +34,12 @@ _T_METRICS_PER_FACE = 1.05e-5
 # Bytes: the interpreter, the libraries and what does not grow with the input; per
 # micro-triangle (the micro-mesh, the optimiser's state, the fit's samples, matches and normal
 # equations: the peak is the fit's); per cached image pixel; per input face (the reference and
-# its topology: small beside the rest). Refitted to the measured peaks of 69k-2.15M
-# micro-triangle runs (docs/results.md: 1.4-2.0 GB at 140k-200k, 7.1 GB at 2.15M), at or
-# within 3 % under each: the first fit (6500 per micro-triangle, from 60k-100k-face inputs
-# only) had doubled the largest.
+# its topology: small beside the rest). Refitted when the fit came to match its samples in
+# chunks (docs/results.md, eleventh session: 4.5 GB at 2.15M micro-triangles, 7.3 GB at
+# 4.3M; 1.0 GB at 167k, which it overestimates by half): the large ones within 4 % above.
 _M_FIXED = 1100 * _MB
 _M_PER_FACE = 0
-_M_PER_MICRO = 3000
+_M_PER_MICRO = 1550
 _M_PER_PIXEL = 40
 
 @dataclass
