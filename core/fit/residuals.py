@@ -5,10 +5,10 @@ import numpy as np
 
 from ..closest import ClosestPointIndex
 from ..micromesh import MicroMesh
-from .samples import Samples
+from .samples import CHUNK, Samples
 
 
-def surface_errors(mm: MicroMesh, samples: Samples, chunk: int = 1 << 20
+def surface_errors(mm: MicroMesh, samples: Samples, chunk: int = CHUNK
                    ) -> tuple[np.ndarray, np.ndarray]:
     """(distance, normal) per base face (nf,) of the reference samples (of
     :class:`.samples.Samples`) whose nearest micro-surface point lies on that face: the

@@ -9,6 +9,10 @@ from ..micromesh import MicroMesh
 
 # At most 4**_MAX_LEVEL samples on one reference face.
 _MAX_LEVEL = 5
+# Samples made, matched and summed at a time: their temporaries (about 200 bytes a sample)
+# stay under glibc's 32 MB mapping threshold, so they are reused from the heap rather than
+# mapped and zero-filled anew for every chunk.
+CHUNK = 1 << 17
 
 
 class FitError(ValueError):
@@ -53,7 +57,7 @@ class Samples:
         for lv in np.unique(self.level):
             yield int(lv), np.flatnonzero(self.level == lv)
 
-    def chunks(self, size: int = 1 << 20):
+    def chunks(self, size: int = CHUNK):
         """(slice of the samples, points (c, 3), normals (c, 3), weights (c,)) in order, about
         ``size`` samples each (whole faces of one level)."""
         corners_all, normals_all = self.reference.vertices, self.reference.face_normals

@@ -18,13 +18,13 @@ from ..closest import ClosestPointIndex
 from ..laplacian import uniform_laplacian
 from ..micromesh import MicroMesh
 from .joint_sums import joint_system
-from .samples import Samples
+from .samples import CHUNK, Samples
 from .triangle_sums import blocks_csr, f64, triangle_sums
 
 
 def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, slopes: float,
                      base_stiffness: float = 0.0, offsets: np.ndarray | None = None,
-                     chunk: int = 1 << 20, by_rows: bool = False
+                     chunk: int = CHUNK, by_rows: bool = False
                      ) -> tuple[sp.csr_matrix, np.ndarray]:
     """(M, b) of one fit round: the samples matched to their closest points on the
     micro-surface of displacements ``d`` (and base vertices moved by ``offsets`` (nb, 3)),
@@ -39,17 +39,17 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, s
     face) pair and per base face (:mod:`.joint_sums`). ``by_rows``: from the rows themselves
     (the general way, which the tests and ``bench/fit_bench.py`` compare them with; the rows
     of all samples at once took 6 KB per sample at the peak). Either way the samples are
-    matched and summed ``chunk`` at a time, in order (the same sums as all at once): the
-    matches of all samples together (closest points, triangles, corners, barycentrics and the
-    corners' positions, about 170 bytes a sample) were the fit's peak on large inputs.
+    made, matched and summed ``chunk`` at a time (:data:`.samples.CHUNK`), in order (the same
+    sums as all at once): the matches of all samples together (closest points, triangles,
+    corners, barycentrics and the corners' positions, about 170 bytes a sample) were the
+    fit's peak on large inputs.
     """
     W = mm.topology.interp.tocsr()
     n, nb = mm.n_vertices, mm.base.n_vertices
     offsets = np.zeros((nb, 3)) if offsets is None else offsets
     P, D = W @ (mm.base.vertices + offsets), mm.micro_vertex_directions()
     T = mm.topology.triangles                  # the non-degenerate micro-triangles
-    # The rows take about 6 KB a sample: fewer at a time.
-    matches = _matches(P + D * d[:, None], T, samples, min(chunk, 1 << 17) if by_rows else chunk)
+    matches = _matches(P + D * d[:, None], T, samples, chunk)
     joint = base_stiffness > 0
     if by_rows:
         M, b = _row_system(matches, P, D, W if joint else None, n + 3 * nb if joint else n,
