@@ -12,7 +12,11 @@ import bpy
 from bpy.props import EnumProperty, IntProperty, StringProperty
 
 from .install import deps
+from .install.platforms import PLATFORMS
 from .operators import install_op
+
+# The CUDA build's download (install/platforms.py, measured by bench/install_sizes.py).
+_CUDA_GB = max(p.cuda_download_mb for p in PLATFORMS) / 1000
 
 PACKAGE = __package__
 
@@ -63,7 +67,7 @@ class MICROMESH_AP_preferences(bpy.types.AddonPreferences):
     torch_build: EnumProperty(name="torch", default="CPU", items=[
         ("CPU", "CPU build", "PyTorch's CPU build: about 190 MB to download, 750 MB installed"),
         ("CUDA", "CUDA build", "The default PyPI build, with CUDA on Linux (NVIDIA GPUs): "
-                               "about 2.9 GB to download")],
+                               f"about {_CUDA_GB:.1f} GB to download")],
         description="Which torch Install Dependencies fetches")
 
     def draw(self, context):

@@ -111,12 +111,14 @@ def read(obj: bpy.types.Object) -> SourceTextures | None:
     uv = bl_mesh.mesh_uvs(obj) if found else None
     if uv is None:
         return None
-    images = []
+    images, read_once = [], {}          # one image may feed two inputs (colour and alpha)
     for socket, (img, output) in found.items():
-        w, h = img.size
-        pixels = np.empty(w * h * 4, dtype=np.float32)
-        img.pixels.foreach_get(pixels)
-        images.append(SourceImage(socket, output, pixels.reshape(h, w, 4),
+        if img.name not in read_once:
+            w, h = img.size
+            pixels = np.empty(w * h * 4, dtype=np.float32)
+            img.pixels.foreach_get(pixels)
+            read_once[img.name] = pixels.reshape(h, w, 4)
+        images.append(SourceImage(socket, output, read_once[img.name],
                                   img.colorspace_settings.name, bool(img.is_float)))
     constants = {k: float(bsdf.inputs[k].default_value) for k in CONSTANTS}
     node = normal_map_node(bsdf)

@@ -120,6 +120,9 @@ def test_the_source_texture_is_carried_onto_the_atlas(bumpy):
     both = transfer_textures(flat, maps, src, uv, [image, rough])
     assert np.array_equal(both[0], color) and both[1].shape == (256, 256, 1)
     assert np.array_equal(both[1][..., 0], color[..., 1])
+    twice = transfer_textures(flat, maps, src, uv, [image, rough, image])   # colour and alpha
+    assert twice[0] is twice[2] and np.array_equal(twice[0], color)
+    assert np.array_equal(twice[1], both[1])
     with pytest.raises(TransferError):
         transfer_textures(flat, maps, src, uv, [image, np.zeros((1, 8))])
 

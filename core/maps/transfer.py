@@ -45,14 +45,17 @@ def transfer_textures(mm: MicroMesh, maps: Maps, source: TriMesh, source_uv: np.
         images: its textures (base colour, roughness, ...); any number of channels each.
     """
     uv = checked_uv(source, source_uv)
-    imgs = [checked_image(image) for image in images]
+    first = {}                        # the same array given twice is carried once
+    slot = [first.setdefault(id(image), len(first)) for image in images]
+    imgs = [checked_image(image) for image in {id(i): i for i in images}.values()]
     res = maps.height.shape[0]
     outs = [np.zeros((res, res, img.shape[2])) for img in imgs]
     for p in source_points(mm, maps, source, chunk):
         at = np.einsum("qk,qkc->qc", p.bary, uv[p.face])
         for img, out in zip(imgs, outs):
             out[p.y, p.x] = sample(img, at)
-    return [dilate(out, maps.filled, padding).astype(np.float32) for out in outs]
+    done = [dilate(out, maps.filled, padding).astype(np.float32) for out in outs]
+    return [done[k] for k in slot]
 
 
 @dataclass(eq=False)

@@ -8,6 +8,7 @@ import torch
 
 from . import triton_walk
 from .scatter import scatter_add
+from .silhouette import MAX_WALK, WALK_DEPTH_RATIO
 from .torch_path import _limits, _view_groups, clip_xyw, fused_default, project
 
 
@@ -54,10 +55,6 @@ def _pick(t, valid, near_a):
     key = torch.where(valid, torch.where(near_a[:, None], t, -t), torch.full_like(t, float("inf")))
     e = key.argmin(1)
     return e, t.gather(1, e[:, None])[:, 0], valid.any(1)
-
-
-MAX_WALK = 64
-WALK_DEPTH_RATIO = 1.01
 
 
 def _walk(vd, f_all, nbr, facing, m64, bi, cur, near_a, walk, fixed, p0, vertical, width, height,
