@@ -117,12 +117,15 @@ def bake_with_textures(mm: MicroMesh, resolution: int, textures, progress, shoul
     if textures is None:
         return maps, []
     progress({"phase": "texture", "iteration": 0, "total": 1})
-    plain = [t for t in textures.images if t.socket != source_texture.NORMAL]
-    done = iter(transfer_textures(mm, maps, textures.mesh, textures.uv,
-                                  [t.pixels for t in plain]) if plain else [])
-    return maps, [transfer_normal_map(mm, maps, textures.mesh, textures.uv, t.pixels)
-                  if t.socket == source_texture.NORMAL else next(done)
-                  for t in textures.images]
+    plain = [t.pixels for t in textures.images if t.socket != source_texture.NORMAL]
+    carried = iter(transfer_textures(mm, maps, textures.mesh, textures.uv, plain) if plain else [])
+    out = []
+    for t in textures.images:
+        if t.socket == source_texture.NORMAL:
+            out.append(transfer_normal_map(mm, maps, textures.mesh, textures.uv, t.pixels))
+        else:
+            out.append(next(carried))
+    return maps, out
 
 
 def carry_textures(obj, textures, carried: list) -> None:

@@ -43,15 +43,12 @@ class Samples:
     def __init__(self, reference: TriMesh, level: np.ndarray):
         self.reference = reference
         self.level = np.asarray(level, dtype=np.int64)
-        self._faces = np.argsort(self.level, kind="stable")      # level by level, in order
-        per_face = 4 ** self.level[self._faces]
-        self._start = np.concatenate([[0], np.cumsum(per_face)])
         areas = reference.face_areas
         w = np.concatenate([np.repeat(areas[f] / 4 ** lv, 4 ** lv) for lv, f in self._groups()])
         self.weights = w / max(w.mean(), 1e-300)
 
     def __len__(self) -> int:
-        return int(self._start[-1])
+        return len(self.weights)
 
     def _groups(self):
         for lv in np.unique(self.level):

@@ -22,9 +22,9 @@ from .samples import CHUNK, Samples
 from .triangle_sums import blocks_csr, f64, triangle_sums
 
 
-def normal_equations(mm: MicroMesh, d: np.ndarray, samples, smoothness: float, slopes: float,
-                     base_stiffness: float = 0.0, offsets: np.ndarray | None = None,
-                     chunk: int = CHUNK, by_rows: bool = False
+def normal_equations(mm: MicroMesh, d: np.ndarray, samples: Samples, smoothness: float,
+                     slopes: float, base_stiffness: float = 0.0,
+                     offsets: np.ndarray | None = None, chunk: int = CHUNK, by_rows: bool = False
                      ) -> tuple[sp.csr_matrix, np.ndarray]:
     """(M, b) of one fit round: the samples matched to their closest points on the
     micro-surface of displacements ``d`` (and base vertices moved by ``offsets`` (nb, 3)),
