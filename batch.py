@@ -178,8 +178,13 @@ def run_all(args, settings, jobs: list, sets: list, rows: list) -> None:
                           f"{sum(len(p.vertices) - 2 for p in source.data.polygons)} triangles",
                           flush=True)
                 else:
+                    t_read = time.perf_counter()
+                    print(f"[{out.name}] reading {path.name} "
+                          f"({path.stat().st_size / 2 ** 20:.0f} MB)", flush=True)
                     source = sources.import_source(path)
                     source.name = out.name
+                    print(f"[{out.name}] read in {time.perf_counter() - t_read:.1f} s",
+                          flush=True)
                 rows.append(Row(label, "done",
                                 process(bpy, source, args, settings, out, interrupt)))
         except (BatchError, ValueError) as e:

@@ -68,9 +68,10 @@ def test_short_run_beats_staged_baseline(scene, device):
     assert r.metrics["cracks"] == 0 and b.metrics["cracks"] == 0
     assert (r.micromesh.levels == 2).all()
     assert [p.phase for p in seen].count("optimize") == 60 and seen[-1].phase == "done"
+    assert seen[0].phase == "reference"      # the reference's checks and winding first
     assert all(p.iteration <= p.total_iterations for p in seen)
     # After the optimiser, one report as each later phase begins, with the time left.
-    finish = [p for p in seen if p.phase not in ("optimize", "done")]
+    finish = [p for p in seen if p.phase not in ("reference", "optimize", "done")]
     assert [p.phase for p in finish] == ["fit", "residual_lod", "base_fit", "bounds", "metrics"]
     assert np.isfinite(finish[0].eta_s) and all(not p.eta_s <= 0 for p in finish)
     assert [p.iteration for p in finish] == [1, 2, 3, 4, 5]

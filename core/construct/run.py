@@ -127,6 +127,8 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     # building included.
     warm_up(dev, antialias=s.antialias)
     t_start = time.perf_counter()
+    if progress is not None:   # loose parts, repeated faces and the winding (seconds at 1M)
+        progress(Progress("reference", 0, 1, 0.0, float("nan"), float("nan")))
     reference, warnings = oriented_reference(reference)
     base, base_report, base_warnings = prepare_base(reference, base, s, progress, should_stop)
     warnings += base_warnings
