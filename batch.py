@@ -179,8 +179,9 @@ def run_all(args, settings, jobs: list, sets: list, rows: list) -> None:
                           flush=True)
                 else:
                     t_read = time.perf_counter()
-                    print(f"[{out.name}] reading {path.name} "
-                          f"({path.stat().st_size / 2 ** 20:.0f} MB)", flush=True)
+                    mb = path.stat().st_size / 2 ** 20
+                    print(f"[{out.name}] reading {path.name} ({mb:.{0 if mb >= 10 else 1}f} MB)",
+                          flush=True)
                     source = sources.import_source(path)
                     source.name = out.name
                     print(f"[{out.name}] read in {time.perf_counter() - t_read:.1f} s",
