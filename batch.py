@@ -92,7 +92,9 @@ def process(bpy, source, args, settings, out, interrupt: Interrupt) -> dict:
     obj = construct_op.finish(bpy.context, source, None, outcome)   # as the panel does
     if args.maps:
         m["maps"] = result_files.write_maps(bpy.context, outcome, source, args.maps, out,
-                                            progress)
+                                            progress, base_obj=obj.micromesh_base)
+        if m["maps"].get("atlas_note"):
+            print(f"[{name}] note: {m['maps']['atlas_note']}", flush=True)
         progress.close(complete=True)
     m["total_time_s"] = time.perf_counter() - t0
     bpy.ops.wm.save_as_mainfile(filepath=str(out.temp(".blend")), compress=True)

@@ -68,15 +68,21 @@ def mesh_uvs(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph | None = None
     obj_eval = obj.evaluated_get(depsgraph)
     mesh = obj_eval.to_mesh()
     try:
-        if mesh is None or mesh.uv_layers.active is None:
-            return None
-        mesh.calc_loop_triangles()
-        loops = np.empty(3 * len(mesh.loop_triangles), dtype=np.int32)
-        mesh.loop_triangles.foreach_get("loops", loops)
-        uv = np.empty(2 * len(mesh.loops), dtype=np.float32)
-        mesh.uv_layers.active.data.foreach_get("uv", uv)
+        return corner_uvs(mesh) if mesh is not None else None
     finally:
         obj_eval.to_mesh_clear()
+
+
+def corner_uvs(mesh: bpy.types.Mesh) -> np.ndarray | None:
+    """(m, 3, 2) the active UV map at the corners of ``mesh``'s loop triangles; None where it
+    has no UV map."""
+    if mesh.uv_layers.active is None:
+        return None
+    mesh.calc_loop_triangles()
+    loops = np.empty(3 * len(mesh.loop_triangles), dtype=np.int32)
+    mesh.loop_triangles.foreach_get("loops", loops)
+    uv = np.empty(2 * len(mesh.loops), dtype=np.float32)
+    mesh.uv_layers.active.data.foreach_get("uv", uv)
     return uv.reshape(-1, 2)[loops].reshape(-1, 3, 2).astype(np.float64)
 
 

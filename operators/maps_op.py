@@ -11,9 +11,10 @@ import bpy
 import numpy as np
 from bpy.props import IntProperty
 
-from ..core.maps import Maps, bake_maps, transfer_normal_map, transfer_textures, unit_directions
+from ..core.maps import (Atlas, AtlasError, Maps, atlas_from_uvs, bake_maps, transfer_normal_map,
+                         transfer_textures, unit_directions)
 from ..core.micromesh import MicroMesh
-from . import bl_mesh, job, source_texture, writeback
+from . import base_ops, bl_mesh, job, source_texture, writeback
 from .images import image
 from .files_op import result_object
 
@@ -109,11 +110,30 @@ def _material(name: str, normal: bpy.types.Image) -> bpy.types.Material:
     return mat
 
 
-def bake_with_textures(mm: MicroMesh, resolution: int, textures, progress, should_stop):
+def own_atlas(base_obj, mm: MicroMesh, resolution: int) -> tuple[Atlas | None, str]:
+    """(the base object's own UV map as the atlas, "") where it has one that fits the
+    micro-mesh's base (the same triangles; ``core.maps.atlas_from_uvs``'s checks): an artist's
+    layout and seams, or UVs the base inherited, are kept. Else (None, why not; "" where the
+    base has no UV map)."""
+    if base_obj is None or base_obj.type != "MESH" or base_obj.data.uv_layers.active is None:
+        return None, ""
+    tri, _ = base_ops.base_arrays(base_obj)
+    if tri.faces.shape != mm.base.faces.shape or not np.array_equal(tri.faces, mm.base.faces):
+        return None, (f"'{base_obj.name}' has changed since the construction: its UV map is "
+                      "not used, a new atlas is made")
+    try:
+        return atlas_from_uvs(mm.base, bl_mesh.corner_uvs(base_obj.data), resolution), ""
+    except AtlasError as e:
+        return None, f"'{base_obj.name}''s UV map is not used ({e}): a new atlas is made"
+
+
+def bake_with_textures(mm: MicroMesh, resolution: int, textures, progress, should_stop,
+                       atlas: Atlas | None = None):
     """(maps, the source's textures on their atlas: one per ``textures.images``, or an empty
-    list): the worker's part of Bake Maps. A normal map is carried into the atlas' tangent
-    frame about the surface (the maps object renders it on the displaced surface)."""
-    maps = bake_maps(mm, resolution, progress=progress, should_stop=should_stop)
+    list): the worker's part of Bake Maps, on ``atlas`` (default: a new one). A normal map is
+    carried into the atlas' tangent frame about the surface (the maps object renders it on
+    the displaced surface)."""
+    maps = bake_maps(mm, resolution, atlas=atlas, progress=progress, should_stop=should_stop)
     if textures is None:
         return maps, []
     progress({"phase": "texture", "iteration": 0, "total": 1})
@@ -156,13 +176,19 @@ class MICROMESH_OT_bake_maps(bpy.types.Operator):
         src = res.micromesh_source
         self._result, self._mm = res, out.micromesh
         self._textures = source_texture.read(src) if src is not None else None
-        return partial(bake_with_textures, out.micromesh, self.resolution, self._textures)
+        atlas, self._atlas_note = own_atlas(res.micromesh_base, out.micromesh, self.resolution)
+        self._own_uvs = atlas is not None
+        return partial(bake_with_textures, out.micromesh, self.resolution, self._textures,
+                       atlas=atlas)
 
     def _finish(self, context, baked):
         maps, carried = baked
         src = self._result.micromesh_source or self._result
         obj = maps_object(context, src, self._mm, maps, f"{src.name}_maps")
-        what = "height and normal maps"
+        what = "height and normal maps" + (
+            f" on '{self._result.micromesh_base.name}''s own UVs" if self._own_uvs else "")
+        if self._atlas_note:
+            self.report({"WARNING"}, self._atlas_note)
         if carried:
             carry_textures(obj, self._textures, carried)
             names = ", ".join(t.socket.lower() for t in self._textures.images)

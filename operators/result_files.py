@@ -70,19 +70,23 @@ def engine_normal_map(mm, maps, textures) -> np.ndarray:
                                about_base=True)
 
 
-def write_maps(context, outcome, source, resolution: int, out, progress) -> dict:
+def write_maps(context, outcome, source, resolution: int, out, progress,
+               base_obj=None) -> dict:
     """Height and normal maps: ``<source>_maps`` in the scene (images packed) and, for
     engines, ``NAME_height.exr``, ``NAME_normal.png`` (16-bit; :func:`engine_normal_map`) and
-    ``NAME_base.gltf`` (UVs, normals, tangents, the normal map); where the source's material has textures, they are
-    carried onto the atlas too (base colour, metallic and roughness, emission: the glTF's
+    ``NAME_base.gltf`` (UVs, normals, tangents, the normal map); where the source's material
+    has textures, they are carried onto the atlas too (base colour, metallic and roughness, emission: the glTF's
     ``NAME_basecolor.png``, ``NAME_metallicroughness.png``, ``NAME_emissive.png``); how well
-    the height map rebuilds the micro-mesh."""
+    the height map rebuilds the micro-mesh. On ``base_obj``'s own UV map where it has one that
+    fits (``maps_op.own_atlas``), else a new atlas."""
     import bpy
 
     mm, name = outcome.micromesh, out.name
     t = time.perf_counter()
     textures = source_texture.read(source)
-    maps, carried = maps_op.bake_with_textures(mm, resolution, textures, progress, lambda: False)
+    atlas, note = maps_op.own_atlas(base_obj, mm, resolution)
+    maps, carried = maps_op.bake_with_textures(mm, resolution, textures, progress, lambda: False,
+                                               atlas=atlas)
     obj = maps_op.maps_object(context, source, mm, maps, f"{source.name}_maps")
     img = images.image(f"{name}_height_file", maps.height, path=str(out.temp("_height.exr")))
     bpy.data.images.remove(img)
@@ -100,5 +104,6 @@ def write_maps(context, outcome, source, resolution: int, out, progress) -> dict
         out.temp(path.name[len(name):]).write_bytes(data)
     err = rebuild_error(mm, maps)
     return {"resolution": resolution, "time_s": time.perf_counter() - t,
+            "own_uvs": atlas is not None, "atlas_note": note,
             "rebuild_rms": float(np.sqrt((err ** 2).mean()) / mm.base.bbox_diagonal),
             "rebuild_max": float(err.max(initial=0.0) / mm.base.bbox_diagonal)}

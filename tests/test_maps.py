@@ -197,3 +197,31 @@ def test_about_the_base_the_carried_normal_map_holds_the_relief_too(bumpy):
     assert np.allclose(surface, [0, 0, 1.0], atol=1e-6)
     tilt = np.degrees(np.arccos(np.clip((base * relief).sum(1), -1, 1)))
     assert np.median(tilt) < 3.0 and np.degrees(np.arccos(relief[:, 2].min())) > 10.0
+
+
+def test_the_base_own_uv_map_is_the_atlas_with_its_seams():
+    """A base that has UVs (its islands cut at x = 0.5, the right one moved apart) gives the
+    atlas those UVs: the vertices on the cut split, the rest shared; the maps bake on it. UVs
+    laid twice over one place (a mirrored half) or outside the unit square are refused."""
+    from core.maps import AtlasError, atlas_from_uvs
+
+    base = _grid(4)
+    P = base.vertices[base.faces]
+    right = P[..., 0].mean(1) > 0.5
+    uv = 0.05 + 0.8 * P[..., :2]
+    uv[right, :, 0] += 0.1
+    atlas = atlas_from_uvs(base, uv, 256)
+    np.testing.assert_array_equal(atlas.corner_uv, uv)
+    np.testing.assert_array_equal(atlas.vertex[atlas.faces], base.faces)
+    assert len(atlas.uv) == base.n_vertices + 5                 # the 5 vertices on the cut
+    flat = MicroMesh.flat(base, np.full(base.n_faces, 2))
+    maps = bake_maps(flat, 256, atlas=atlas)
+    assert maps.atlas is atlas and 0.5 < maps.filled.mean() < 0.8
+    mirrored = uv.copy()
+    mirrored[right, :, 0] = 0.05 + 0.8 * (1.0 - P[right][..., 0])   # onto the left island
+    with pytest.raises(AtlasError, match="overlaps"):
+        atlas_from_uvs(base, mirrored, 256)
+    with pytest.raises(AtlasError, match="unit square"):
+        atlas_from_uvs(base, uv + 0.5, 256)
+    with pytest.raises(AtlasError):
+        atlas_from_uvs(base, uv[:-1], 256)

@@ -302,6 +302,35 @@ def test_bake_maps_carries_the_source_normal_map_through_a_normal_map_node(scene
     assert np.median((engine * relief).sum(1)) > np.cos(np.radians(5))
 
 
+def test_bake_maps_uses_the_base_own_uv_map_where_it_has_one(scene):
+    """A base with a UV map of its own (an artist's layout: here every triangle in a cell of
+    its own) is baked on those UVs, seams and all; a map that lays every triangle on the
+    same place is refused with a warning and a new atlas is made."""
+    assert bpy.ops.micromesh.construct(method="PROJECTION") == {"FINISHED"}
+    res = bpy.data.objects["rock_micromesh"]
+    base = res.micromesh_base
+    me = base.data
+    assert all(len(p.vertices) == 3 for p in me.polygons)
+    n = int(np.ceil(np.sqrt(len(me.polygons))))
+    cell = np.arange(len(me.polygons))
+    x0, y0 = (cell % n) / n, (cell // n) / n
+    corners = np.array([[0.1, 0.1], [0.9, 0.1], [0.1, 0.9]]) / n
+    uv = np.stack([x0, y0], 1)[:, None, :] + corners[None]           # (faces, 3, 2)
+    me.uv_layers.new(name="UVMap").data.foreach_set("uv", uv.astype(np.float32).reshape(-1))
+    assert bpy.ops.micromesh.bake_maps(resolution=256) == {"FINISHED"}
+    maps = bpy.data.objects["rock_maps"].data
+    got = np.empty(2 * len(maps.loops), np.float32)
+    maps.uv_layers["UVMap"].data.foreach_get("uv", got)
+    np.testing.assert_allclose(got.reshape(-1, 3, 2), uv, atol=1e-6)
+    stacked = np.broadcast_to(corners[None] * n, uv.shape)           # all on one place
+    me.uv_layers["UVMap"].data.foreach_set("uv", stacked.astype(np.float32).reshape(-1))
+    assert bpy.ops.micromesh.bake_maps(resolution=256) == {"FINISHED"}
+    maps = bpy.data.objects["rock_maps"].data
+    got = np.empty(2 * len(maps.loops), np.float32)
+    maps.uv_layers["UVMap"].data.foreach_get("uv", got)
+    assert not np.allclose(got.reshape(-1, 3, 2), stacked, atol=1e-3)     # a new atlas
+
+
 def test_carried_emission_reaches_gltf_as_the_source_shows_it():
     """The emission colour goes into glTF's emissive texture times the source's Emission
     Strength (glTF's core emission stops at 1), and not at all where the strength is 0 (the

@@ -51,6 +51,36 @@ def uv_atlas(base: TriMesh, resolution: int, padding: int = 4) -> Atlas:
                  np.asarray(vmap, np.int64))
 
 
+# Texels that two faces' UV triangles both claim, as a fraction of the charts' area in texels,
+# above which a given UV map is refused (mirrored or stacked islands: one texel, two places).
+MAX_OVERLAP = 0.02
+
+
+def atlas_from_uvs(base: TriMesh, corner_uv: np.ndarray, resolution: int) -> Atlas:
+    """The base's own UV map as the atlas: ``corner_uv`` (nf, 3, 2) per face corner, a vertex
+    split wherever its corners' UVs differ (the map's seams). Refused (:class:`AtlasError`)
+    where the UVs are not finite, leave [0, 1]², or overlap (more than :data:`MAX_OVERLAP` of
+    the charts' texels at ``resolution`` claimed twice): a texel must stand for one point."""
+    uv = np.asarray(corner_uv, dtype=np.float64)
+    if uv.shape != (base.n_faces, 3, 2) or not np.isfinite(uv).all():
+        raise AtlasError(f"the UV map must be finite, (3, 2) per face ({base.n_faces}), "
+                         f"got {uv.shape}")
+    if uv.min() < -1e-6 or uv.max() > 1 + 1e-6:
+        raise AtlasError("the UV map leaves the unit square (tiles or wrapping)")
+    key = np.concatenate([base.faces.reshape(-1, 1).astype(np.float64), uv.reshape(-1, 2)], 1)
+    rows, inv = np.unique(key, axis=0, return_inverse=True)
+    atlas = Atlas(rows[:, 1:].copy(), inv.reshape(-1, 3).astype(np.int64),
+                  rows[:, 0].astype(np.int64))
+    c = uv * resolution
+    area = 0.5 * np.abs((c[:, 1, 0] - c[:, 0, 0]) * (c[:, 2, 1] - c[:, 0, 1])
+                        - (c[:, 2, 0] - c[:, 0, 0]) * (c[:, 1, 1] - c[:, 0, 1])).sum()
+    covered = int((texel_faces(atlas, resolution, resolution)[0] >= 0).sum())
+    if area > 0 and covered < (1.0 - MAX_OVERLAP) * area - 4.0 * resolution:
+        raise AtlasError(f"the UV map overlaps itself ({1 - covered / area:.0%} of its area "
+                         "twice): a baked texel would stand for two places")
+    return atlas
+
+
 def texel_faces(atlas: Atlas, width: int, height: int, chunk: int = 1 << 22
                 ) -> tuple[np.ndarray, np.ndarray]:
     """(face (H, W) int64, -1 where no face; bary (H, W, 3) float64): the base face whose UV
