@@ -49,12 +49,12 @@ def process(bpy, source, args, settings, out, interrupt: Interrupt) -> dict:
     t0 = time.perf_counter()
     notes: list[str] = []
     reference = bl_mesh.mesh_to_arrays(source, notes=notes)
-    base_tm = None
-    if args.base_method == "blender":
+    base_tm = base_uv = None
+    if args.base_method == "blender":      # as Make Base: the source's UVs carried along
         target = min(target_faces(reference.n_faces, settings.base_ratio, settings.base_faces),
                      reference.n_faces)
-        base_tm = bl_mesh.decimate_object(source, target_faces=max(4, target),
-                                          symmetry=args.symmetry)
+        base_tm, base_uv = bl_mesh.decimate_object_uvs(source, target_faces=max(4, target),
+                                                       symmetry=args.symmetry)
         print(f"[{name}] reference {reference.n_faces} triangles -> base {base_tm.n_faces} "
               f"(Blender's Decimate, {time.perf_counter() - t0:.1f} s)", flush=True)
     cams = None
@@ -89,7 +89,7 @@ def process(bpy, source, args, settings, out, interrupt: Interrupt) -> dict:
             print(f"[{name}] note: {note}", flush=True)
     for warning in m.get("warnings", []):
         print(f"[{name}] warning: {warning}", flush=True)
-    obj = construct_op.finish(bpy.context, source, None, outcome)   # as the panel does
+    obj = construct_op.finish(bpy.context, source, None, outcome, base_uv)   # as the panel does
     if args.maps:
         m["maps"] = result_files.write_maps(bpy.context, outcome, source, args.maps, out,
                                             progress, base_obj=obj.micromesh_base)

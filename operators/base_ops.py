@@ -45,11 +45,14 @@ def base_arrays(base_obj: bpy.types.Object) -> tuple[TriMesh, np.ndarray]:
 
 
 def link_base(context, src: bpy.types.Object, vertices: np.ndarray,
-              faces: np.ndarray) -> bpy.types.Object:
+              faces: np.ndarray, uv: np.ndarray | None = None) -> bpy.types.Object:
     """``<source>_base`` holding the world-space triangles (an earlier base of the same source
-    is reused), shown as wire."""
+    is reused), shown as wire; ``uv`` (faces, 3, 2): a UV map "UVMap" at their corners."""
     name = f"{src.name}_base"
     mesh = bl_mesh.arrays_to_mesh(name, vertices, faces)
+    if uv is not None:
+        mesh.uv_layers.new(name="UVMap").data.foreach_set(
+            "uv", np.asarray(uv, dtype=np.float32).reshape(-1))
     obj, reused = bl_mesh.object_with_mesh(context, name, mesh, src,
                                            reuse=lambda o: o.micromesh_source == src)
     if reused:  # the arrays are in world space
@@ -74,20 +77,21 @@ class MICROMESH_OT_make_base(bpy.types.Operator):
         s = context.scene.micromesh
         src = source_object(context)
         notes = []
+        uv = None              # Blender's Decimate carries the source's UVs: the base keeps them
         try:
             if s.base_method == "COLLAPSE":
                 base, notes = self._collapse(context, src)
             else:
                 kw = dict(target_faces=s.target_faces) if s.decimate_mode == "TARGET" else \
                     dict(ratio=s.ratio if s.decimate_mode == "RATIO" else 1 / 32)
-                base = bl_mesh.decimate_object(
+                base, uv = bl_mesh.decimate_object_uvs(
                     src, symmetry=None if s.symmetry == "NONE" else s.symmetry,
                     vertex_group=s.vertex_group, vertex_group_factor=s.vertex_group_factor,
                     invert_vertex_group=s.invert_vertex_group, **kw)
         except ValueError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
-        obj = link_base(context, src, base.vertices, base.faces)
+        obj = link_base(context, src, base.vertices, base.faces, uv)
         s.source, s.base = src, obj
         for line in notes:
             self.report({"WARNING"}, line)

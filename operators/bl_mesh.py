@@ -111,6 +111,18 @@ def decimate_object(obj: bpy.types.Object, target_faces: int | None = None,
     weight the collapse); ``obj`` is never modified and everything created is removed again.
     ``symmetry`` is None or an axis 'X' / 'Y' / 'Z'. Returns a triangulated ``TriMesh``.
     """
+    return decimate_object_uvs(obj, target_faces, ratio, symmetry, vertex_group,
+                               vertex_group_factor, invert_vertex_group, world)[0]
+
+
+def decimate_object_uvs(obj: bpy.types.Object, target_faces: int | None = None,
+                        ratio: float | None = None, symmetry: str | None = None,
+                        vertex_group: str = "", vertex_group_factor: float = 1.0,
+                        invert_vertex_group: bool = False, world: bool = True
+                        ) -> tuple[TriMesh, np.ndarray | None]:
+    """:func:`decimate_object` and the active UV map it carried through the collapse, (m, 3,
+    2) at the triangles' corners (None where ``obj`` has none): the base inherits the
+    source's UVs and seams."""
     depsgraph = bpy.context.evaluated_depsgraph_get()
     obj_eval = obj.evaluated_get(depsgraph)
     temp_mesh = bpy.data.meshes.new_from_object(obj_eval, preserve_all_data_layers=True,
@@ -140,7 +152,7 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, target_faces: int | None =
     mesh = arrays_to_mesh("_micromesh_decimate", vertices, faces)
     temp = bpy.data.objects.new("_micromesh_decimate", mesh)
     try:
-        out = _decimate_temp(temp, target_faces, ratio, symmetry, "", 1.0, False, False)
+        out, _ = _decimate_temp(temp, target_faces, ratio, symmetry, "", 1.0, False, False)
     finally:
         bpy.data.objects.remove(temp)
         bpy.data.meshes.remove(mesh)
@@ -148,7 +160,7 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, target_faces: int | None =
 
 
 def _decimate_temp(temp, target_faces, ratio, symmetry, vertex_group, vertex_group_factor,
-                   invert_vertex_group, world) -> TriMesh:
+                   invert_vertex_group, world) -> tuple[TriMesh, np.ndarray | None]:
     sizes = np.empty(len(temp.data.polygons), np.int32)
     temp.data.polygons.foreach_get("loop_total", sizes)
     n_tris = int((sizes - 2).sum())
@@ -182,7 +194,7 @@ def _decimate_temp(temp, target_faces, ratio, symmetry, vertex_group, vertex_gro
             mod.invert_vertex_group = invert_vertex_group
         depsgraph = bpy.context.evaluated_depsgraph_get()
         depsgraph.update()
-        return mesh_to_arrays(temp, depsgraph, world=world)
+        return mesh_to_arrays(temp, depsgraph, world=world), mesh_uvs(temp, depsgraph)
     finally:
         scene.collection.objects.unlink(temp)
 

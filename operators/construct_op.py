@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from functools import partial
 
 import bpy
+import numpy as np
 from bpy.props import EnumProperty
 
 from ..core.outcome import Outcome
@@ -80,13 +81,14 @@ def sync_state(scene, state: job.JobState) -> None:
     s.status = state.status_text()
 
 
-def finish(context, source, base_obj, outcome: Outcome) -> bpy.types.Object:
+def finish(context, source, base_obj, outcome: Outcome,
+           base_uv: np.ndarray | None = None) -> bpy.types.Object:
     """A finished construction into the scene (the panel and ``batch.py``): the base object
-    (linked as ``<source>_base`` when the worker built it), the result, the panel's source and
-    base; returns the result object."""
+    (linked as ``<source>_base`` when the worker built it, with ``base_uv`` at its corners
+    where given), the result, the panel's source and base; returns the result object."""
     if base_obj is None:
         base = outcome.micromesh.base
-        base_obj = base_ops.link_base(context, source, base.vertices, base.faces)
+        base_obj = base_ops.link_base(context, source, base.vertices, base.faces, base_uv)
     obj = writeback.write_result(context, source, base_obj, outcome)
     s = context.scene.micromesh
     s.source, s.base = source, base_obj

@@ -290,3 +290,32 @@ def test_maps_for_engines(inputs, tmp_path):
     bpy.ops.wm.open_mainfile(filepath=str(out / "ball.blend"))
     assert bpy.data.objects["ball_maps"].modifiers.get("MicroMesh Height") is not None
     bpy.ops.wm.read_factory_settings(use_empty=True)
+    assert m["maps"]["own_uvs"] is False                       # the builder's base: a new atlas
+
+
+def test_maps_on_the_uvs_a_decimated_base_inherits(tmp_path):
+    """--base-method blender carries the source's UVs onto the base, as Make Base does, and
+    --maps lays the maps out on them (a grid whose UVs are its x, y in the unit square)."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=24, y_subdivisions=24, size=2.0,
+                                    calc_uvs=True)
+    bpy.context.active_object.name = "sheet"
+    src = tmp_path / "sheet.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(src))
+    out = tmp_path / "out"
+    r = run_batch("--input", src, "--output", out, "--base-method", "blender", "--method",
+                  "projection", "--maps", "64", "--export", "none")
+    assert r.returncode == 0, r.stdout + r.stderr
+    m = json.loads((out / "sheet.metrics.json").read_text())["metrics"]
+    assert m["maps"]["own_uvs"] is True and m["maps"]["atlas_note"] == ""
+    bpy.ops.wm.open_mainfile(filepath=str(out / "sheet.blend"))
+    maps = bpy.data.objects["sheet_maps"].data
+    got = np.empty(2 * len(maps.loops), np.float32)
+    maps.uv_layers["UVMap"].data.foreach_get("uv", got)
+    corners = np.empty(3 * len(maps.polygons), np.int32)
+    maps.polygons.foreach_get("vertices", corners)
+    xy = np.empty(3 * len(maps.vertices), np.float32)
+    maps.vertices.foreach_get("co", xy)
+    xy = xy.reshape(-1, 3)[corners, :2]
+    np.testing.assert_allclose(got.reshape(-1, 2), (xy + 1.0) / 2.0, atol=1e-5)
+    bpy.ops.wm.read_factory_settings(use_empty=True)

@@ -331,6 +331,29 @@ def test_bake_maps_uses_the_base_own_uv_map_where_it_has_one(scene):
     assert not np.allclose(got.reshape(-1, 3, 2), stacked, atol=1e-3)     # a new atlas
 
 
+def test_a_base_made_by_blenders_decimate_inherits_the_source_uvs_and_bakes_on_them(scene):
+    """Make Base with Blender's Decimate on a UV-mapped source (a grid whose UVs are its x, y
+    scaled into the unit square) gives a base carrying those UVs; Bake Maps then lays the maps
+    out on them rather than on a new atlas."""
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=24, y_subdivisions=24, size=2.0,
+                                    calc_uvs=True)
+    grid = bpy.context.active_object
+    grid.name = "sheet"
+    s = scene.micromesh
+    s.source, s.base, s.base_method, s.decimate_mode, s.ratio = grid, None, "BLENDER", "RATIO", 0.25
+    assert bpy.ops.micromesh.make_base() == {"FINISHED"}
+    base = s.base
+    uv = bl_mesh.corner_uvs(base.data)
+    v, f = bl_mesh.mesh_arrays(base.data)
+    np.testing.assert_allclose(uv, (v[f][..., :2] + 1.0) / 2.0, atol=1e-5)   # the source's map
+    assert bpy.ops.micromesh.construct(method="PROJECTION") == {"FINISHED"}
+    assert bpy.ops.micromesh.bake_maps(resolution=128) == {"FINISHED"}
+    maps = bpy.data.objects["sheet_maps"].data
+    got = np.empty(2 * len(maps.loops), np.float32)
+    maps.uv_layers["UVMap"].data.foreach_get("uv", got)
+    np.testing.assert_allclose(got.reshape(-1, 3, 2), bl_mesh.corner_uvs(base.data), atol=1e-6)
+
+
 def test_carried_emission_reaches_gltf_as_the_source_shows_it():
     """The emission colour goes into glTF's emissive texture times the source's Emission
     Strength (glTF's core emission stops at 1), and not at all where the strength is 0 (the
