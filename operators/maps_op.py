@@ -11,10 +11,10 @@ import bpy
 import numpy as np
 from bpy.props import IntProperty
 
-from ..core.maps import (Atlas, AtlasError, Maps, atlas_from_uvs, bake_maps, transfer_normal_map,
-                         transfer_textures, unit_directions)
+from ..core.maps import Maps, unit_directions
 from ..core.micromesh import MicroMesh
-from . import base_ops, bl_mesh, job, source_texture, writeback
+from . import bl_mesh, job, source_texture, writeback
+from .maps_work import bake_with_textures, own_atlas
 from .images import image
 from .files_op import result_object
 
@@ -110,54 +110,6 @@ def _material(name: str, normal: bpy.types.Image) -> bpy.types.Material:
     return mat
 
 
-def own_atlas(base_obj, mm: MicroMesh, resolution: int) -> tuple[Atlas | None, str]:
-    """(the base object's own UV map as the atlas, "") where it has one that fits the
-    micro-mesh's base (the same triangles; ``core.maps.atlas_from_uvs``'s checks): an artist's
-    layout and seams, or UVs the base inherited, are kept. Else (None, why not; "" where the
-    base has no UV map)."""
-    if base_obj is None or base_obj.type != "MESH" or base_obj.data.uv_layers.active is None:
-        return None, ""
-    tri, _ = base_ops.base_arrays(base_obj)
-    if tri.faces.shape != mm.base.faces.shape or not np.array_equal(tri.faces, mm.base.faces):
-        return None, (f"'{base_obj.name}' has changed since the construction: its UV map is "
-                      "not used, a new atlas is made")
-    try:
-        return atlas_from_uvs(mm.base, bl_mesh.corner_uvs(base_obj.data), resolution), ""
-    except AtlasError as e:
-        return None, f"'{base_obj.name}''s UV map is not used ({e}): a new atlas is made"
-
-
-def bake_with_textures(mm: MicroMesh, resolution: int, textures, progress, should_stop,
-                       atlas: Atlas | None = None):
-    """(maps, the source's textures on their atlas: one per ``textures.images``, or an empty
-    list): the worker's part of Bake Maps, on ``atlas`` (default: a new one). A normal map is
-    carried into the atlas' tangent frame about the surface (the maps object renders it on
-    the displaced surface)."""
-    maps = bake_maps(mm, resolution, atlas=atlas, progress=progress, should_stop=should_stop)
-    if textures is None:
-        return maps, []
-    progress({"phase": "texture", "iteration": 0, "total": 1})
-    plain = [t.pixels for t in textures.images if t.socket != source_texture.NORMAL]
-    carried = iter(transfer_textures(mm, maps, textures.mesh, textures.uv, plain) if plain else [])
-    out = []
-    for t in textures.images:
-        if t.socket == source_texture.NORMAL:
-            out.append(transfer_normal_map(mm, maps, textures.mesh, textures.uv, t.pixels))
-        else:
-            out.append(next(carried))
-    return maps, out
-
-
-def carry_textures(obj, textures, carried: list) -> None:
-    """The carried textures as images of the maps object's material, each linked to the input
-    it fed in the source's; the source's constants copied."""
-    mat = obj.data.materials[0]
-    source_texture.copy_constants(mat, textures)
-    for like, pixels in zip(textures.images, carried):
-        img = source_texture.make_image(f"{obj.name}_{like.slug}", pixels, like)
-        source_texture.link_input(mat, img, like, textures.normal_strength)
-
-
 class MICROMESH_OT_bake_maps(bpy.types.Operator):
     """Bake height and normal maps of the micro-mesh on a UV atlas of its base, and make an
     object that renders the detail from them (Cycles and EEVEE)"""
@@ -190,7 +142,7 @@ class MICROMESH_OT_bake_maps(bpy.types.Operator):
         if self._atlas_note:
             self.report({"WARNING"}, self._atlas_note)
         if carried:
-            carry_textures(obj, self._textures, carried)
+            source_texture.carry_textures(obj, self._textures, carried)
             names = ", ".join(t.socket.lower() for t in self._textures.images)
             what += f", and '{src.name}''s textures ({names}) carried onto their atlas"
         self.report({"INFO"}, f"{obj.name}: {self.resolution}² {what}")

@@ -11,7 +11,7 @@ import numpy as np
 from ..core.io.maps_files import base_gltf, png
 from ..core.io.micromesh_export import micromesh_files
 from ..core.maps import rebuild_error, transfer_normal_map
-from . import images, maps_op, source_texture, writeback
+from . import images, maps_op, maps_work, source_texture, writeback
 from .sources import export_y_up
 
 
@@ -78,22 +78,22 @@ def write_maps(context, outcome, source, resolution: int, out, progress,
     has textures, they are carried onto the atlas too (base colour, metallic and roughness, emission: the glTF's
     ``NAME_basecolor.png``, ``NAME_metallicroughness.png``, ``NAME_emissive.png``); how well
     the height map rebuilds the micro-mesh. On ``base_obj``'s own UV map where it has one that
-    fits (``maps_op.own_atlas``), else a new atlas."""
+    fits (``maps_work.own_atlas``), else a new atlas."""
     import bpy
 
     mm, name = outcome.micromesh, out.name
     t = time.perf_counter()
     textures = source_texture.read(source)
-    atlas, note = maps_op.own_atlas(base_obj, mm, resolution)
-    maps, carried = maps_op.bake_with_textures(mm, resolution, textures, progress, lambda: False,
-                                               atlas=atlas)
+    atlas, note = maps_work.own_atlas(base_obj, mm, resolution)
+    maps, carried = maps_work.bake_with_textures(mm, resolution, textures, progress,
+                                                 lambda: False, atlas=atlas)
     obj = maps_op.maps_object(context, source, mm, maps, f"{source.name}_maps")
     img = images.image(f"{name}_height_file", maps.height, path=str(out.temp("_height.exr")))
     bpy.data.images.remove(img)
     out.temp("_normal.png").write_bytes(png(engine_normal_map(mm, maps, textures)))
     uris = {}
     if carried:
-        maps_op.carry_textures(obj, textures, carried)
+        source_texture.carry_textures(obj, textures, carried)
         for slot, pixels in gltf_textures(textures, carried).items():
             suffix = "_" + slot.replace("Texture", "").lower() + ".png"
             out.temp(suffix).write_bytes(png(np.clip(pixels, 0.0, 1.0), bits=8))

@@ -165,3 +165,13 @@ def link_input(mat: bpy.types.Material, image: bpy.types.Image, like: SourceImag
     nmap.inputs["Strength"].default_value = normal_strength
     link(tex.outputs["Color"], nmap.inputs["Color"])
     link(nmap.outputs["Normal"], bsdf.inputs[NORMAL])
+
+
+def carry_textures(obj, textures, carried: list) -> None:
+    """The carried textures as images of the maps object's material, each linked to the input
+    it fed in the source's; the source's constants copied."""
+    mat = obj.data.materials[0]
+    copy_constants(mat, textures)
+    for like, pixels in zip(textures.images, carried):
+        img = make_image(f"{obj.name}_{like.slug}", pixels, like)
+        link_input(mat, img, like, textures.normal_strength)
