@@ -39,8 +39,8 @@ from micromesh.cli.usage import DEMO_NAME, check_usage  # noqa: E402
 def process(bpy, source, args, settings, out, interrupt: Interrupt) -> dict:
     """Base mesh, cameras, construction, write-back, save: the add-on's steps, headless.
     ``out``: the result's :class:`OutputSet` (committed here, when every file is written)."""
-    from micromesh.operators import (bl_mesh, cameras_io, construct_op, pipeline, result_files,
-                                     writeback)
+    from micromesh.operators import (bl_decimate, bl_mesh, cameras_io, construct_op, pipeline,
+                                     result_files, writeback)
 
     from micromesh.cli.progress import PhaseProgress
     from micromesh.core.base import target_faces
@@ -53,7 +53,7 @@ def process(bpy, source, args, settings, out, interrupt: Interrupt) -> dict:
     if args.base_method == "blender":      # as Make Base: the source's UVs carried along
         target = min(target_faces(reference.n_faces, settings.base_ratio, settings.base_faces),
                      reference.n_faces)
-        base_tm, base_uv = bl_mesh.decimate_object_uvs(source, target_faces=max(4, target),
+        base_tm, base_uv = bl_decimate.decimate_object_uvs(source, target_faces=max(4, target),
                                                        symmetry=args.symmetry)
         print(f"[{name}] reference {reference.n_faces} triangles -> base {base_tm.n_faces} "
               f"(Blender's Decimate, {time.perf_counter() - t0:.1f} s)", flush=True)

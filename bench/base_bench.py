@@ -46,7 +46,7 @@ def blender_decimate(ref: TriMesh, faces: int) -> tuple[TriMesh, float]:
     import micromesh_path
 
     micromesh_path.ensure_package()
-    from micromesh.operators.bl_mesh import decimate
+    from micromesh.operators.bl_decimate import decimate
 
     t0 = time.perf_counter()
     v, f = decimate(ref.vertices, ref.faces, target_faces=faces)

@@ -6,7 +6,7 @@ import numpy as np
 from bpy.props import BoolProperty
 
 from ..core.mesh import MeshError, TriMesh
-from . import bl_mesh, cameras_io, check
+from . import bl_decimate, bl_mesh, cameras_io, check
 
 
 def source_object(context) -> bpy.types.Object | None:
@@ -84,7 +84,7 @@ class MICROMESH_OT_make_base(bpy.types.Operator):
             else:
                 kw = dict(target_faces=s.target_faces) if s.decimate_mode == "TARGET" else \
                     dict(ratio=s.ratio if s.decimate_mode == "RATIO" else 1 / 32)
-                base, uv = bl_mesh.decimate_object_uvs(
+                base, uv = bl_decimate.decimate_object_uvs(
                     src, symmetry=None if s.symmetry == "NONE" else s.symmetry,
                     vertex_group=s.vertex_group, vertex_group_factor=s.vertex_group_factor,
                     invert_vertex_group=s.invert_vertex_group, **kw)

@@ -8,7 +8,7 @@ bpy = pytest.importorskip("bpy")
 import micromesh_path  # noqa: E402
 
 micromesh_path.ensure_package()
-from micromesh.operators import bl_mesh  # noqa: E402
+from micromesh.operators import bl_decimate, bl_mesh  # noqa: E402
 
 
 @pytest.fixture(autouse=True)
@@ -48,7 +48,7 @@ def test_arrays_roundtrip():
 def test_decimate_arrays_cleans_up(kw):
     m = bl_mesh.mesh_to_arrays(_sphere())
     n_obj, n_mesh = len(bpy.data.objects), len(bpy.data.meshes)
-    v, f = bl_mesh.decimate(m.vertices, m.faces, **kw)
+    v, f = bl_decimate.decimate(m.vertices, m.faces, **kw)
     assert (len(bpy.data.objects), len(bpy.data.meshes)) == (n_obj, n_mesh)
     want = kw.get("target_faces") or kw["ratio"] * m.n_faces
     assert abs(len(f) - want) <= 0.1 * want
@@ -61,7 +61,7 @@ def test_decimate_arrays_cleans_up(kw):
 def test_decimate_object_respects_world_and_leaves_source():
     obj = _sphere(location=(5.0, 0.0, 0.0))
     before = len(obj.data.polygons)
-    base = bl_mesh.decimate_object(obj, target_faces=200)
+    base = bl_decimate.decimate_object(obj, target_faces=200)
     assert len(obj.data.polygons) == before and len(obj.modifiers) == 0
     assert abs(base.n_faces - 200) <= 20
     assert np.allclose(base.vertices.mean(0), [5.0, 0.0, 0.0], atol=0.1)
@@ -70,11 +70,11 @@ def test_decimate_object_respects_world_and_leaves_source():
 def test_decimate_bad_input():
     m = bl_mesh.mesh_to_arrays(_sphere())
     with pytest.raises(ValueError):
-        bl_mesh.decimate(m.vertices, m.faces, ratio=1.5)
+        bl_decimate.decimate(m.vertices, m.faces, ratio=1.5)
     with pytest.raises(ValueError):
-        bl_mesh.decimate(m.vertices, m.faces)
+        bl_decimate.decimate(m.vertices, m.faces)
     with pytest.raises(ValueError):
-        bl_mesh.decimate(m.vertices, m.faces, ratio=0.5, symmetry="W")
+        bl_decimate.decimate(m.vertices, m.faces, ratio=0.5, symmetry="W")
 
 
 def test_decimate_object_vertex_group_weighting():
@@ -87,15 +87,15 @@ def test_decimate_object_vertex_group_weighting():
         c = m.vertices[m.faces].mean(1)[:, 2]
         return int((c > 0).sum()), int((c < 0).sum())
 
-    plain = halves(bl_mesh.decimate_object(obj, ratio=0.3))
-    weighted = halves(bl_mesh.decimate_object(obj, ratio=0.3, vertex_group="keep"))
-    inverted = halves(bl_mesh.decimate_object(obj, ratio=0.3, vertex_group="keep",
+    plain = halves(bl_decimate.decimate_object(obj, ratio=0.3))
+    weighted = halves(bl_decimate.decimate_object(obj, ratio=0.3, vertex_group="keep"))
+    inverted = halves(bl_decimate.decimate_object(obj, ratio=0.3, vertex_group="keep",
                                               invert_vertex_group=True))
     assert abs(plain[0] - plain[1]) <= 0.1 * sum(plain)           # symmetric without weights
     assert abs(weighted[0] - weighted[1]) > 0.2 * sum(weighted)   # the group shifts the detail
     assert (weighted[0] > weighted[1]) != (inverted[0] > inverted[1])
     with pytest.raises(ValueError, match="vertex group"):
-        bl_mesh.decimate_object(obj, ratio=0.3, vertex_group="nope")
+        bl_decimate.decimate_object(obj, ratio=0.3, vertex_group="nope")
 
 
 def test_triangulated_polygons_are_said():
