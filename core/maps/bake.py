@@ -45,7 +45,7 @@ def base_point(mm: MicroMesh, U: np.ndarray, faces: np.ndarray, bary: np.ndarray
     (``U``: :func:`unit_directions`)."""
     tri = mm.base.faces[faces]
     return (np.einsum("qk,qkc->qc", bary, mm.base.vertices[tri]),
-            _unit(np.einsum("qk,qkc->qc", bary, U[tri])))
+            unit(np.einsum("qk,qkc->qc", bary, U[tri])))
 
 
 class MapsCancelled(RuntimeError):
@@ -89,7 +89,7 @@ def bake_maps(mm: MicroMesh, resolution: int = 2048, padding: int = 4,
         m = facet[hit.face]
         tv = tangents[atlas.faces[f]]                              # (q, 3, 4)
         tl = np.einsum("qk,qkc->qc", b, tv[..., :3])
-        t = _unit(tl - n * (tl * n).sum(1, keepdims=True))
+        t = unit(tl - n * (tl * n).sum(1, keepdims=True))
         bt = np.cross(n, t) * tv[:, 0, 3:4]
         normal[y, x] = np.stack([(m * t).sum(1), (m * bt).sum(1), (m * n).sum(1)], 1)
     height = dilate(height, filled, padding)
@@ -140,12 +140,19 @@ def vertex_tangents(mm: MicroMesh, atlas: Atlas) -> np.ndarray:
     for k in range(3):
         np.add.at(t, atlas.faces[:, k], tangent)
         np.add.at(s, atlas.faces[:, k], sign)
-    n = unit_directions(mm)[atlas.vertex]
-    t = t - n * (t * n).sum(1, keepdims=True)
-    bad = np.linalg.norm(t, axis=1) < 1e-12          # no UV gradient: any perpendicular
-    alt = np.cross(n, np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
-    t[bad] = alt[bad]
-    return np.concatenate([_unit(t), np.where(s < 0, -1.0, 1.0)[:, None]], 1)
+    t = orthogonal_tangent(unit_directions(mm)[atlas.vertex], t)
+    return np.concatenate([t, np.where(s < 0, -1.0, 1.0)[:, None]], 1)
+
+
+def orthogonal_tangent(n: np.ndarray, tangent: np.ndarray) -> np.ndarray:
+    """(q, 3) ``tangent`` made orthogonal to the unit normals ``n`` and unit; where it has no
+    part orthogonal to n (no UV gradient), any unit perpendicular."""
+    t = tangent - n * (tangent * n).sum(1, keepdims=True)
+    bad = np.linalg.norm(t, axis=1) < 1e-12
+    if bad.any():
+        alt = np.where(np.abs(n[bad, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
+        t[bad] = np.cross(n[bad], alt)
+    return unit(t)
 
 
 def rebuild_error(mm: MicroMesh, maps: Maps, nearest: bool = False) -> np.ndarray:
@@ -171,6 +178,7 @@ def face_tangents(V: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return tangent, np.where(det < 0, -1.0, 1.0)
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
+def unit(v: np.ndarray) -> np.ndarray:
+    """Rows of ``v`` scaled to length 1 (zero rows stay zero)."""
     n = np.linalg.norm(v, axis=1, keepdims=True)
     return v / np.maximum(n, 1e-300)

@@ -8,8 +8,9 @@ N: the carried map holds the same tilted normal in that frame. Applied through a
 node on the displaced micro-surface (which follows the source), it tilts the shading as the
 source's map did. ``about_base``: the frame is the base's instead (about its interpolated
 direction, as ``bake``'s micro-detail map): for the undisplaced base of an engine, where the
-map must carry the micro-surface's relief and the source's map together. The frames are per-face UV gradients interpolated as ``bake`` does for the
-atlas, not MikkTSpace's: they agree where the UVs are not strongly sheared.
+map must carry the micro-surface's relief and the source's map together. The frames are
+per-face UV gradients interpolated as ``bake`` does for the atlas, not MikkTSpace's: they
+agree where the UVs are not strongly sheared.
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ import numpy as np
 from ..mesh import TriMesh
 from ..micromesh import MicroMesh
 from .atlas import dilate
-from .bake import Maps, face_tangents, sample, vertex_tangents
+from .bake import Maps, face_tangents, orthogonal_tangent, sample, unit, vertex_tangents
 from .transfer import checked_image, checked_uv, source_points
 
 
@@ -39,11 +40,11 @@ def transfer_normal_map(mm: MicroMesh, maps: Maps, source: TriMesh, source_uv: n
     out = np.zeros((res, res, 3))
     out[..., 2] = 1.0
     for p in source_points(mm, maps, source, chunk):
-        N = _unit(np.einsum("qk,qkc->qc", p.bary, src_n[source.faces[p.face]]))
+        N = unit(np.einsum("qk,qkc->qc", p.bary, src_n[source.faces[p.face]]))
         T, B = _frame(N, src_t[p.face], src_sign[p.face])
         at = np.einsum("qk,qkc->qc", p.bary, uv[p.face])
         t = sample(img[..., :3], at) * 2.0 - 1.0
-        n = _unit(t[:, :1] * T + t[:, 1:2] * B + t[:, 2:3] * N)
+        n = unit(t[:, :1] * T + t[:, 1:2] * B + t[:, 2:3] * N)
         corners = atlas_t[maps.atlas.faces[p.texel_face]]     # (q, 3, 4)
         Na = p.direction if about_base else N
         Ta, Ba = _frame(Na, np.einsum("qk,qkc->qc", p.texel_bary, corners[..., :3]),
@@ -54,16 +55,6 @@ def transfer_normal_map(mm: MicroMesh, maps: Maps, source: TriMesh, source_uv: n
 
 def _frame(N: np.ndarray, tangent: np.ndarray, sign: np.ndarray
            ) -> tuple[np.ndarray, np.ndarray]:
-    """(T, B) about unit normals ``N``: ``tangent`` made orthogonal to N and unit (any
-    perpendicular where it has no such part), B = sign · N × T."""
-    T = tangent - N * (tangent * N).sum(1, keepdims=True)
-    bad = np.linalg.norm(T, axis=1) < 1e-12
-    if bad.any():
-        alt = np.where(np.abs(N[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
-        T[bad] = np.cross(N[bad], alt[bad])
-    T = _unit(T)
+    """(T, B) about unit normals ``N``: the unit tangent orthogonal to N, B = sign · N × T."""
+    T = orthogonal_tangent(N, tangent)
     return T, np.cross(N, T) * np.asarray(sign, dtype=np.float64)[:, None]
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-300)
