@@ -8,7 +8,7 @@ import numpy as np
 from ..core.maps import (Atlas, AtlasError, atlas_from_uvs, bake_maps, transfer_normal_map,
                          transfer_textures)
 from ..core.micromesh import MicroMesh
-from . import base_ops, bl_mesh, source_texture
+from . import bl_mesh, source_texture
 
 
 def own_atlas(base_obj, mm: MicroMesh, resolution: int) -> tuple[Atlas | None, str]:
@@ -18,8 +18,8 @@ def own_atlas(base_obj, mm: MicroMesh, resolution: int) -> tuple[Atlas | None, s
     base has no UV map)."""
     if base_obj is None or base_obj.type != "MESH" or base_obj.data.uv_layers.active is None:
         return None, ""
-    tri, _ = base_ops.base_arrays(base_obj)
-    if tri.faces.shape != mm.base.faces.shape or not np.array_equal(tri.faces, mm.base.faces):
+    _, faces = bl_mesh.mesh_arrays(base_obj.data)
+    if faces.shape != mm.base.faces.shape or not np.array_equal(faces, mm.base.faces):
         return None, (f"'{base_obj.name}' has changed since the construction: its UV map is "
                       "not used, a new atlas is made")
     try:

@@ -75,8 +75,9 @@ def write_maps(context, outcome, source, resolution: int, out, progress,
     """Height and normal maps: ``<source>_maps`` in the scene (images packed) and, for
     engines, ``NAME_height.exr``, ``NAME_normal.png`` (16-bit; :func:`engine_normal_map`) and
     ``NAME_base.gltf`` (UVs, normals, tangents, the normal map); where the source's material
-    has textures, they are carried onto the atlas too (base colour, metallic and roughness, emission: the glTF's
-    ``NAME_basecolor.png``, ``NAME_metallicroughness.png``, ``NAME_emissive.png``); how well
+    has textures, they are carried onto the atlas too (base colour, metallic and roughness,
+    emission: the glTF's ``NAME_basecolor.png``, ``NAME_metallicroughness.png``,
+    ``NAME_emissive.png``); how well
     the height map rebuilds the micro-mesh. On ``base_obj``'s own UV map where it has one that
     fits (``maps_work.own_atlas``), else a new atlas."""
     import bpy

@@ -80,7 +80,8 @@ def joint_sums(tri, corners, B, pts, normals, weights, P, D, slopes, tri_face, b
                 b[n + (x // 3) * nb + base_faces[f, x % 3]] += w * be[x] * r
 
 
-def joint_system(matches, T, P, D, W, topology, base_faces, slopes: float) -> tuple[sp.csr_matrix, np.ndarray]:
+def joint_system(matches, T, P, D, W, topology, base_faces, slopes: float
+                 ) -> tuple[sp.csr_matrix, np.ndarray]:
     """(M, b) over the displacements (n) and the base offsets (3 nb, x then y then z), the
     system ``system._row_system`` builds from the rows with ``W``; ``matches`` as
     ``system._matches`` yields them."""
@@ -94,8 +95,8 @@ def joint_system(matches, T, P, D, W, topology, base_faces, slopes: float) -> tu
     slot, faces = i64(slot.reshape(m, 3)), i64(base_faces)
     P, D, w_ptr, w_idx, w_val = f64(P), f64(D), i64(W.indptr), i64(W.indices), f64(W.data)
     for pts, normals, weights, tri, corners, B in matches:
-        joint_sums(i64(tri), corners, B, f64(pts), f64(normals), f64(weights), P, D, float(slopes), tri_face, faces, slot, w_ptr,
-                   w_idx, w_val, n, nb, G, C, H, b)
+        joint_sums(i64(tri), corners, B, f64(pts), f64(normals), f64(weights), P, D,
+                   float(slopes), tri_face, faces, slot, w_ptr, w_idx, w_val, n, nb, G, C, H, b)
     del slot
     size = n + 3 * nb
     # The parts summed one at a time (csr_sum), each freed before the next is made.

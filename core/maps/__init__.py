@@ -7,7 +7,7 @@ from .bake import (Maps, MapsCancelled, bake_maps, rebuild_error, rebuilt_positi
 from .normal_transfer import transfer_normal_map
 from .transfer import TransferError, transfer_texture, transfer_textures
 
-__all__ = ["Atlas", "AtlasError", "Maps", "atlas_from_uvs", "MapsCancelled", "TransferError", "bake_maps",
-           "dilate", "rebuild_error", "rebuilt_positions", "sample", "texel_faces",
-           "transfer_normal_map",
-           "transfer_texture", "transfer_textures", "unit_directions", "uv_atlas", "vertex_tangents"]
+__all__ = ["Atlas", "AtlasError", "Maps", "MapsCancelled", "TransferError", "atlas_from_uvs",
+           "bake_maps", "dilate", "rebuild_error", "rebuilt_positions", "sample", "texel_faces",
+           "transfer_normal_map", "transfer_texture", "transfer_textures", "unit_directions",
+           "uv_atlas", "vertex_tangents"]

@@ -13,10 +13,10 @@ fragmented and the process's resident size growing with every fit round (the 1.0
 input: 5.9 GB at the end of the fit for a far smaller live set).
 
 All act on the whole process, and the thresholds stay for the rest of it (glibc cannot go
-back to its adaptive default); freed heap is only returned by ``release_memory`` and
-``map_large_allocations``, which ``core.construct`` calls after every construction. Where the C library is not glibc, or
-where the process allocates through another allocator (Blender's Linux builds use jemalloc),
-they do nothing.
+back to its adaptive default); freed heap is only returned by ``map_large_allocations``,
+which ``core.construct`` calls after the optimiser, and ``release_memory``, which it calls
+after every construction. Where the C library is not glibc, or where the process allocates
+through another allocator (Blender's Linux builds use jemalloc), they do nothing.
 """
 from __future__ import annotations
 
@@ -55,7 +55,8 @@ def map_large_allocations() -> bool:
     libc = _glibc()
     if libc is None:
         return False
-    ok = bool(libc.mallopt(_M_MMAP_THRESHOLD, _MAPPED)) and bool(libc.mallopt(_M_TRIM_THRESHOLD, _TRIM))
+    ok = bool(libc.mallopt(_M_MMAP_THRESHOLD, _MAPPED)) \
+        and bool(libc.mallopt(_M_TRIM_THRESHOLD, _TRIM))
     libc.malloc_trim(0)
     return ok
 

@@ -2,8 +2,8 @@
 estimate was fitted on (``core.construct.estimate``): a short probe, timed once per process.
 
 The probe does a little of what a construction spends its time on, none of it compiled on
-first use (a cold kernel cache would time the compiler): a sort and a gather (the base
-builder's and the samples' bookkeeping), sparse matrix-vector products (the fit's conjugate
+first use (a cold kernel cache would time the compiler): a sort and a scatter-add (the
+base builder's and the samples' bookkeeping), sparse matrix-vector products (the fit's conjugate
 gradients) and float32 matrix products on torch's thread pool (the renderer's parallel part,
 on the cores the run will use). The best of three repeats is taken, so a busy moment does not
 make the machine look slow. ``REFERENCE_SECONDS`` is the probe's time on the estimate's
