@@ -6,6 +6,7 @@ on CUDA (``--device cuda``) the torch path with its fused Triton kernels next to
     python bench/render_bench.py --quick          # 20k / 200k at 256², fewer repeats
     python bench/render_bench.py --json out.json  # records {backend, device, triangles, ...}
     python bench/render_bench.py --profile        # plus the numba iteration stage by stage
+                                                  # (on CUDA: torch.profiler's table by op)
 
 The mesh is ``_common.noisy_sphere`` with its vertices renumbered in order of first use (memory
 locality like a micro-mesh's; the raw numbering is ~30 % slower to rasterise); the target is the
@@ -105,9 +106,9 @@ def run_one(backend: str, device: str, triangles: int, res: int, views: int, rep
     keep_large_allocations()  # as core.construct runs the renderer
     name = backend
     if backend == "torch-plain":  # the torch path without its fused CUDA kernels
-        from core.render import torch_path
+        from core.render import triton_kernels
 
-        torch_path.fused_default = lambda device: False
+        triton_kernels.available = lambda device: False
         backend = "torch"
 
     v, f = first_use_order(*C.noisy_sphere(triangles))
@@ -141,7 +142,19 @@ def run_one(backend: str, device: str, triangles: int, res: int, views: int, rep
         rec["gpu_peak_mb"] = torch.cuda.max_memory_allocated() / 2 ** 20
     if profile and backend == "numba":
         rec["stages"] = numba_stages(verts, faces, cams, target, repeat)
+    if profile and device == "cuda":
+        rec["cuda_profile"] = cuda_profile(forward_backward)
     return rec
+
+
+def cuda_profile(forward_backward, iterations: int = 3) -> str:
+    """torch.profiler's table of the GPU kernels of ``iterations`` forward + backward runs."""
+    from torch.profiler import ProfilerActivity, profile
+
+    with profile(activities=[ProfilerActivity.CPU, ProfilerActivity.CUDA]) as prof:
+        for _ in range(iterations):
+            forward_backward()
+    return prof.key_averages().table(sort_by="cuda_time_total", row_limit=30)
 
 
 def main() -> None:
@@ -201,6 +214,11 @@ def main() -> None:
               for rec in records if "stages" in rec]
     if stages:
         C.print_table(stages, title="numba iteration by stage, each timed alone (s)")
+    for rec in records:
+        if "cuda_profile" in rec:
+            print(f"\n{rec['backend']}, {rec['triangles']} triangles at {rec['resolution']}², "
+                  f"{rec['views']} views: GPU time by op over 3 forward + backward runs\n"
+                  f"{rec['cuda_profile']}")
     C.write_json(a.json, records, threads=threads)
 
 

@@ -256,6 +256,55 @@ def test_cuda_fused_kernels_agree_with_the_plain_torch_path():
 
 @CUDA
 @pytest.mark.gpu
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_cuda_fused_shading_and_normals_agree_with_the_plain_torch_path(dtype):
+    """The shading ("shaded", "flat") and the vertex normals as Triton kernels with their
+    fixed-order backward give the plain torch path's images and gradients (the plain path in
+    float64: the kernels compute in float64 whatever the vertices' type)."""
+    from core.render import fused_normals, fused_shade, geometry, torch_path
+    from core.render.types import camera_mvp
+
+    if not torch_path.fused_default(torch.device("cuda")):
+        pytest.skip("Triton is not installed")
+    v, f = tensors(*icosphere(5, noise=0.03))
+    v, f = v.cuda().to(dtype), f.cuda()
+    cams = fibonacci_cameras(5, width=96)
+    mvp = camera_mvp(cams, v.device)
+    tri = torch_path.rasterize_torch(v, f, mvp, 96, 96)[0]
+    g = torch.randn((5, 96, 96, 3), generator=torch.Generator().manual_seed(3)).cuda().to(dtype)
+    tol = dict(rtol=1e-5, atol=1e-6) if dtype == torch.float32 else dict(rtol=1e-9, atol=1e-12)
+    for kind in ("shaded", "flat"):
+        out = []
+        for fused in (False, True):
+            x = (v.double() if not fused else v).clone().requires_grad_(True)
+            vn = geometry.vertex_normals(x, f) if kind == "shaded" else None
+            img = torch_path.shade_torch(x, f, vn, mvp, tri, kind, fused=fused)
+            (img * g.to(x.dtype)).sum().backward()
+            out.append((img.detach().to(dtype), x.grad.to(dtype)))
+        torch.testing.assert_close(out[1][0], out[0][0], **tol)
+        err = float((out[1][1] - out[0][1]).norm() / out[0][1].norm())
+        assert err < (1e-5 if dtype == torch.float32 else 1e-12), (kind, err)
+    x1, x2 = v.clone().requires_grad_(True), v.clone().requires_grad_(True)
+    n1 = fused_normals.normal_sums(x1, f)
+    assert n1 is not None
+    f64 = f.long()
+    n2 = torch.zeros_like(x2)
+    for k in range(3):
+        n2 = n2.index_add(0, f64[:, k], torch.linalg.cross(x2[f64[:, 1]] - x2[f64[:, 0]],
+                                                            x2[f64[:, 2]] - x2[f64[:, 0]]))
+    gn = torch.randn_like(n1)
+    (n1 * gn).sum().backward()
+    (n2 * gn).sum().backward()
+    torch.testing.assert_close(n1.detach(), n2.detach(), **tol)
+    torch.testing.assert_close(x1.grad, x2.grad, **tol)
+    from core.render import triton_kernels
+
+    assert fused_shade.shade(v, f, None, mvp, tri, "flat") is not None
+    assert triton_kernels.failure is None, triton_kernels.failure
+
+
+@CUDA
+@pytest.mark.gpu
 def test_cuda_agrees_with_cpu():
     v, f = tensors(*icosphere(3, noise=0.03))
     cams = fibonacci_cameras(4, width=64)

@@ -82,6 +82,22 @@ def vertex_corners(faces: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
     return _cached(faces, "corners", _corners_numpy)
 
 
+def vertex_corner_segments(faces: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """``vertex_corners`` as tensors on the faces' device: (corners, start, count), vertex v's
+    corners at corners[start[v]:start[v] + count[v]] (for vertices up to the largest index)."""
+    def make(f: np.ndarray):
+        ptr, corners = _corners_numpy(f)
+        return tuple(torch.from_numpy(a).to(faces.device) for a in (corners, ptr[:-1], np.diff(ptr)))
+
+    return _cached(faces, "corners_dev", make)
+
+
+def index_range(faces: torch.Tensor) -> tuple[int, int]:
+    """(smallest, largest) vertex index in non-empty ``faces``, cached (a check per render
+    would otherwise wait for the GPU twice)."""
+    return _cached(faces, "range", lambda f: (int(f.min()), int(f.max())))
+
+
 def faces_int32(faces: torch.Tensor) -> np.ndarray:
     """Contiguous int32 numpy copy of CPU faces (halves the kernels' index traffic), cached."""
     return _cached(faces, "f32", lambda f: np.ascontiguousarray(f, dtype=np.int32))

@@ -109,9 +109,11 @@ def antialias_torch(color: torch.Tensor, verts: torch.Tensor, faces: torch.Tenso
     dt = verts.dtype
     f_all = faces.long()
     nbr = nbr.long()
-    facing = face_facing(verts, faces, mvp, width, height)
     vd = verts.detach().to(torch.float64)
     m64, mdt = mvp.to(torch.float64), mvp.to(dt)
+    facing = triton_walk.facing(vd, f_all, m64, width, height) if fused else None
+    if facing is None:
+        facing = face_facing(verts, faces, mvp, width, height)
     for axis in (2, 1):  # horizontal pairs (along W), then vertical pairs (along H)
         vertical = axis == 1
         ida = tri_id.narrow(axis, 0, tri_id.shape[axis] - 1)

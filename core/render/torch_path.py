@@ -14,7 +14,7 @@ from __future__ import annotations
 import torch
 
 from .geometry import normalize
-from . import triton_kernels
+from . import fused_shade, triton_kernels
 from .scatter import gather
 from .sh import shade_normals
 
@@ -214,8 +214,14 @@ def barycentrics_torch(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tens
 
 
 def shade_torch(verts: torch.Tensor, faces: torch.Tensor, vnormals: torch.Tensor,
-                mvp: torch.Tensor, tri_id: torch.Tensor, kind: str) -> torch.Tensor:
-    """(B, H, W, C) image of ``kind`` ('shaded', 'flat', 'normal', 'depth', 'mask'), background 0."""
+                mvp: torch.Tensor, tri_id: torch.Tensor, kind: str, fused: bool | None = None
+                ) -> torch.Tensor:
+    """(B, H, W, C) image of ``kind`` ('shaded', 'flat', 'normal', 'depth', 'mask'), background 0.
+    ``fused``: 'shaded' and 'flat' as fused kernels (``fused_shade``; default ``fused_default``)."""
+    if fused_default(verts.device) if fused is None else fused:
+        img = fused_shade.shade(verts, faces, vnormals, mvp, tri_id, kind)
+        if img is not None:
+            return img
     nb, height, width = tri_id.shape
     index, face, bary, w = barycentrics_torch(verts, faces, mvp, tri_id)
     if kind == "mask":

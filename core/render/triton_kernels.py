@@ -39,7 +39,10 @@ def guarded(fn):
         try:
             return fn(*args, **kwargs)
         except Exception as exc:  # noqa: BLE001 - any compiler or driver error
-            failure = f"{type(exc).__name__}: {exc}"
+            root = exc
+            while root.__cause__ is not None:  # a compiler error's cause says what went wrong
+                root = root.__cause__
+            failure = f"{type(exc).__name__}: {exc}" + ("" if root is exc else f" ({root!r})")
             warnings.warn(f"the fused CUDA kernels cannot run here ({failure}); the renderer "
                           "uses its plain torch path", RuntimeWarning, stacklevel=3)
             return None

@@ -10,6 +10,8 @@ from .triton_kernels import BLOCK_SIZE, guarded, tl, triton
 
 
 if triton is not None:
+    from .triton_shade import clip_row
+
     @triton.jit
     def _screen(vd_ptr, m_ptr, b, vi, width, height, mask):
         """Screen x, y of vertex ``vi`` in view ``b`` (``torch_antialias._face_screen``) and w > 0."""
@@ -120,6 +122,48 @@ if triton is not None:
             steep = tl.where(e2 == 0, r0, tl.where(e2 == 1, r1, r2))
             step += 1
         tl.store(code_ptr + p, code, mask=live)
+
+
+    @triton.jit
+    def _projected(vd_ptr, m_ptr, vi, width, height, mask):
+        """Screen x, y, clip z, w of vertex ``vi`` (``torch_path.project``'s arithmetic)."""
+        vx = tl.load(vd_ptr + vi * 3, mask=mask, other=0.0)
+        vy = tl.load(vd_ptr + vi * 3 + 1, mask=mask, other=0.0)
+        vz = tl.load(vd_ptr + vi * 3 + 2, mask=mask, other=0.0)
+        x, y = clip_row(m_ptr, 0, vx, vy, vz, mask), clip_row(m_ptr, 1, vx, vy, vz, mask)
+        z, w = clip_row(m_ptr, 2, vx, vy, vz, mask), clip_row(m_ptr, 3, vx, vy, vz, mask)
+        return (x / w + 1.0) * (0.5 * width), (1.0 - y / w) * (0.5 * height), z, w
+
+    @triton.jit
+    def _facing_kernel(vd_ptr, f_ptr, m_ptr, out_ptr, n_items, n_faces, width, height,
+                       BLOCK: tl.constexpr):
+        item = tl.program_id(0).to(tl.int64) * BLOCK + tl.arange(0, BLOCK)
+        live = item < n_items
+        b, face = item // n_faces, item % n_faces
+        mb = m_ptr + b * 16
+        x0, y0, z0, w0 = _projected(vd_ptr, mb, tl.load(f_ptr + face * 3, mask=live, other=0),
+                                    width, height, live)
+        x1, y1, z1, w1 = _projected(vd_ptr, mb, tl.load(f_ptr + face * 3 + 1, mask=live, other=0),
+                                    width, height, live)
+        x2, y2, z2, w2 = _projected(vd_ptr, mb, tl.load(f_ptr + face * 3 + 2, mask=live, other=0),
+                                    width, height, live)
+        area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
+        ok = (w0 > 0) & (w1 > 0) & (w2 > 0) & (z0 >= -w0) & (z1 >= -w1) & (z2 >= -w2)
+        sign = tl.where(ok & (area > 0), 1, tl.where(ok & (area < 0), -1, 0))
+        tl.store(out_ptr + item, sign.to(tl.int8), mask=live)
+
+
+@guarded
+def facing(vd: torch.Tensor, f: torch.Tensor, m64: torch.Tensor, width: int, height: int
+           ) -> torch.Tensor:
+    """``torch_antialias.face_facing`` in one kernel: (B, M) int8 sign of each face's screen
+    area per view; ``vd`` (N, 3) float64, ``f`` (M, 3) int64, ``m64`` (B, 4, 4) float64."""
+    out = torch.empty((len(m64), len(f)), dtype=torch.int8, device=vd.device)
+    if out.numel():
+        _facing_kernel[(triton.cdiv(out.numel(), BLOCK_SIZE),)](
+            vd.contiguous(), f.contiguous(), m64.contiguous(), out, out.numel(), len(f), width,
+            height, BLOCK=BLOCK_SIZE)
+    return out
 
 
 @guarded

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from .topology import index_range
+
 
 class RenderError(ValueError):
     """The renderer cannot use its input (bad shapes, indices, cameras or backend)."""
@@ -69,8 +71,10 @@ def check_mesh(verts: torch.Tensor, faces: torch.Tensor) -> tuple[torch.Tensor, 
         raise RenderError(f"faces must be an integer (M, 3) tensor, got {tuple(faces.shape)} {faces.dtype}")
     if faces.device != verts.device:
         raise RenderError("verts and faces must be on the same device")
-    if len(faces) and (int(faces.min()) < 0 or int(faces.max()) >= len(verts)):
-        raise RenderError("face index out of range")
+    if len(faces):
+        lo, hi = index_range(faces)
+        if lo < 0 or hi >= len(verts):
+            raise RenderError("face index out of range")
     return verts, faces
 
 
