@@ -93,8 +93,7 @@ def vertex_corner_segments(faces: torch.Tensor) -> tuple[torch.Tensor, torch.Ten
 
 
 def index_range(faces: torch.Tensor) -> tuple[int, int]:
-    """(smallest, largest) vertex index in non-empty ``faces``, cached (a check per render
-    would otherwise wait for the GPU twice)."""
+    """(smallest, largest) vertex index in non-empty ``faces``, cached."""
     return _cached(faces, "range", lambda f: (int(f.min()), int(f.max())))
 
 

@@ -7,7 +7,8 @@ are processed in groups only to bound memory). Visibility is one z-buffer for al
 nearest face wins and ties go to the smaller id, exactly like the numba rasteriser (same
 float64 coverage arithmetic). Everything after visibility is differentiable torch code;
 autograd does the backward. On CUDA the per-(view, face) pixel loop runs as one Triton kernel
-(``triton_kernels``); the antialiasing is ``torch_antialias``.
+(``triton_kernels``) and the shading as fused kernels with their own backward
+(``fused_shade``); the antialiasing is ``torch_antialias``.
 """
 from __future__ import annotations
 

@@ -72,7 +72,8 @@ def check_mesh(verts: torch.Tensor, faces: torch.Tensor) -> tuple[torch.Tensor, 
     if faces.device != verts.device:
         raise RenderError("verts and faces must be on the same device")
     if len(faces):
-        lo, hi = index_range(faces)
+        # on a GPU, cached per faces tensor: reading the range back waits for the GPU
+        lo, hi = index_range(faces) if faces.is_cuda else (int(faces.min()), int(faces.max()))
         if lo < 0 or hi >= len(verts):
             raise RenderError("face index out of range")
     return verts, faces
