@@ -134,7 +134,7 @@ class MICROMESH_OT_bake_maps(bpy.types.Operator):
                        atlas=atlas)
 
     def _finish(self, context, baked):
-        maps, carried = baked
+        maps, carried = baked.maps, baked.carried
         src = self._result.micromesh_source or self._result
         obj = maps_object(context, src, self._mm, maps, f"{src.name}_maps")
         what = "height and normal maps" + (

@@ -3,10 +3,11 @@ atlas (the base object's own UV map where it fits, else a new xatlas one), the h
 normal maps on it and the source's textures carried onto it (the worker's part)."""
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from ..core.maps import (Atlas, AtlasError, atlas_from_uvs, bake_maps, transfer_normal_map,
-                         transfer_textures)
+from ..core.maps import Atlas, AtlasError, Carry, Maps, atlas_from_uvs, bake_maps, carry
 from ..core.micromesh import MicroMesh
 from . import bl_mesh, source_texture
 
@@ -28,22 +29,27 @@ def own_atlas(base_obj, mm: MicroMesh, resolution: int) -> tuple[Atlas | None, s
         return None, f"'{base_obj.name}''s UV map is not used ({e}): a new atlas is made"
 
 
+class Baked(NamedTuple):
+    maps: Maps
+    carried: list                      # one per ``textures.images`` (empty without textures)
+    base_normal: np.ndarray | None     # the source's normal map about the base, when asked
+
+
 def bake_with_textures(mm: MicroMesh, resolution: int, textures, progress, should_stop,
-                       atlas: Atlas | None = None):
-    """(maps, the source's textures on their atlas: one per ``textures.images``, or an empty
-    list): the worker's part of Bake Maps, on ``atlas`` (default: a new one). A normal map is
-    carried into the atlas' tangent frame about the surface (the maps object renders it on
-    the displaced surface)."""
+                       atlas: Atlas | None = None, base_normal: bool = False) -> Baked:
+    """The worker's part of Bake Maps: the maps on ``atlas`` (default: a new one) and the
+    source's textures carried onto it, all in one pass over the texels (``core.maps.carry``).
+    A normal map is carried into the atlas' tangent frame about the surface (the maps object
+    renders it on the displaced surface); with ``base_normal``, also about the base (for an
+    engine's undisplaced base: ``result_files.engine_normal_map``)."""
     maps = bake_maps(mm, resolution, atlas=atlas, progress=progress, should_stop=should_stop)
     if textures is None:
-        return maps, []
+        return Baked(maps, [], None)
     progress({"phase": "texture", "iteration": 0, "total": 1})
-    plain = [t.pixels for t in textures.images if t.socket != source_texture.NORMAL]
-    carried = iter(transfer_textures(mm, maps, textures.mesh, textures.uv, plain) if plain else [])
-    out = []
-    for t in textures.images:
-        if t.socket == source_texture.NORMAL:
-            out.append(transfer_normal_map(mm, maps, textures.mesh, textures.uv, t.pixels))
-        else:
-            out.append(next(carried))
-    return maps, out
+    items = [Carry(t.pixels, normal=t.socket == source_texture.NORMAL) for t in textures.images]
+    normal = next((t for t in textures.images if t.socket == source_texture.NORMAL), None)
+    if base_normal and normal is not None:
+        items.append(Carry(normal.pixels, normal=True, about_base=True))
+    out = carry(mm, maps, textures.mesh, textures.uv, items)
+    n = len(textures.images)
+    return Baked(maps, out[:n], out[n] if len(out) > n else None)

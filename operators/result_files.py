@@ -10,7 +10,7 @@ import numpy as np
 
 from ..core.io.maps_files import base_gltf, png
 from ..core.io.micromesh_export import micromesh_files
-from ..core.maps import rebuild_error, transfer_normal_map
+from ..core.maps import rebuild_error
 from . import images, maps_op, maps_work, source_texture, writeback
 from .sources import export_y_up
 
@@ -58,16 +58,11 @@ def gltf_textures(textures, carried: list) -> dict:
     return out
 
 
-def engine_normal_map(mm, maps, textures) -> np.ndarray:
+def engine_normal_map(baked: maps_work.Baked) -> np.ndarray:
     """The glTF base's normal map: the micro-surface's relief (``maps.normal``) or, where the
     source has a tangent-space normal map, the source's shading normals in the base's tangent
-    frame, which hold that relief and the source's map together."""
-    like = next((t for t in textures.images if t.socket == source_texture.NORMAL), None) \
-        if textures is not None else None
-    if like is None:
-        return maps.normal
-    return transfer_normal_map(mm, maps, textures.mesh, textures.uv, like.pixels,
-                               about_base=True)
+    frame, which hold that relief and the source's map together (``baked.base_normal``)."""
+    return baked.maps.normal if baked.base_normal is None else baked.base_normal
 
 
 def write_maps(context, outcome, source, resolution: int, out, progress,
@@ -86,12 +81,13 @@ def write_maps(context, outcome, source, resolution: int, out, progress,
     t = time.perf_counter()
     textures = source_texture.read(source)
     atlas, note = maps_work.own_atlas(base_obj, mm, resolution)
-    maps, carried = maps_work.bake_with_textures(mm, resolution, textures, progress,
-                                                 lambda: False, atlas=atlas)
+    baked = maps_work.bake_with_textures(mm, resolution, textures, progress, lambda: False,
+                                         atlas=atlas, base_normal=True)
+    maps, carried = baked.maps, baked.carried
     obj = maps_op.maps_object(context, source, mm, maps, f"{source.name}_maps")
     img = images.image(f"{name}_height_file", maps.height, path=str(out.temp("_height.exr")))
     bpy.data.images.remove(img)
-    out.temp("_normal.png").write_bytes(png(engine_normal_map(mm, maps, textures)))
+    out.temp("_normal.png").write_bytes(png(engine_normal_map(baked)))
     uris = {}
     if carried:
         source_texture.carry_textures(obj, textures, carried)

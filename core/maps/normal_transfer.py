@@ -20,37 +20,39 @@ from ..mesh import TriMesh
 from ..micromesh import MicroMesh
 from .atlas import dilate
 from .bake import Maps, face_tangents, orthogonal_tangent, sample, unit, vertex_tangents
-from .transfer import checked_image, checked_uv, source_points
+from .transfer import SourcePoints, checked_image
 
 
-def transfer_normal_map(mm: MicroMesh, maps: Maps, source: TriMesh, source_uv: np.ndarray,
-                        image: np.ndarray, about_base: bool = False, padding: int = 4,
-                        chunk: int = 1 << 20) -> np.ndarray:
-    """The source's tangent-space normal map ``image`` (H, W, ≥3, row 0 at v = 0, RGB in
-    [0, 1]) on ``maps``' atlas: (R, R, 3) float32, RGB = (n + 1) / 2 in the atlas' tangent
-    frame. ``source_uv``: (source.n_faces, 3, 2) the UVs the map is laid out in."""
-    uv = checked_uv(source, source_uv)
-    img = checked_image(image)
-    if img.shape[2] < 3:
-        raise ValueError("a normal map needs three channels")
-    src_t, src_sign = face_tangents(source.vertices[source.faces], uv)
-    src_n = source.vertex_normals
-    atlas_t = vertex_tangents(mm, maps.atlas)                 # (m, 4): tangent, sign
-    res = maps.height.shape[0]
-    out = np.zeros((res, res, 3))
-    out[..., 2] = 1.0
-    for p in source_points(mm, maps, source, chunk):
-        N = unit(np.einsum("qk,qkc->qc", p.bary, src_n[source.faces[p.face]]))
-        T, B = _frame(N, src_t[p.face], src_sign[p.face])
-        at = np.einsum("qk,qkc->qc", p.bary, uv[p.face])
-        t = sample(img[..., :3], at) * 2.0 - 1.0
+class NormalSink:
+    """A tangent-space normal map of the source (H, W, >=3, RGB in [0, 1]) in the atlas'
+    tangent frame, about the surface or, ``about_base``, about the base."""
+
+    def __init__(self, mm: MicroMesh, maps: Maps, source: TriMesh, uv: np.ndarray, image,
+                 about_base: bool = False) -> None:
+        self.image = checked_image(image)
+        if self.image.shape[2] < 3:
+            raise ValueError("a normal map needs three channels")
+        self.faces, self.atlas_faces, self.about_base = source.faces, maps.atlas.faces, about_base
+        self.src_t, self.src_sign = face_tangents(source.vertices[source.faces], uv)
+        self.src_n = source.vertex_normals
+        self.atlas_t = vertex_tangents(mm, maps.atlas)                 # (m, 4): tangent, sign
+        res = maps.height.shape[0]
+        self.out = np.zeros((res, res, 3))
+        self.out[..., 2] = 1.0
+
+    def add(self, p: SourcePoints, at: np.ndarray) -> None:
+        N = unit(np.einsum("qk,qkc->qc", p.bary, self.src_n[self.faces[p.face]]))
+        T, B = _frame(N, self.src_t[p.face], self.src_sign[p.face])
+        t = sample(self.image[..., :3], at) * 2.0 - 1.0
         n = unit(t[:, :1] * T + t[:, 1:2] * B + t[:, 2:3] * N)
-        corners = atlas_t[maps.atlas.faces[p.texel_face]]     # (q, 3, 4)
-        Na = p.direction if about_base else N
+        corners = self.atlas_t[self.atlas_faces[p.texel_face]]     # (q, 3, 4)
+        Na = p.direction if self.about_base else N
         Ta, Ba = _frame(Na, np.einsum("qk,qkc->qc", p.texel_bary, corners[..., :3]),
                         corners[:, 0, 3])
-        out[p.y, p.x] = np.stack([(n * Ta).sum(1), (n * Ba).sum(1), (n * Na).sum(1)], 1)
-    return ((dilate(out, maps.filled, padding) + 1.0) * 0.5).astype(np.float32)
+        self.out[p.y, p.x] = np.stack([(n * Ta).sum(1), (n * Ba).sum(1), (n * Na).sum(1)], 1)
+
+    def done(self, maps: Maps, padding: int) -> np.ndarray:
+        return ((dilate(self.out, maps.filled, padding) + 1.0) * 0.5).astype(np.float32)
 
 
 def _frame(N: np.ndarray, tangent: np.ndarray, sign: np.ndarray

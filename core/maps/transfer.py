@@ -1,4 +1,5 @@
-"""A texture of the source carried onto the base's atlas, so the baked asset keeps its look.
+"""A texture of the source on the base's atlas, so the baked asset keeps its look: the texels'
+source points and the plain images' sampling (``carry`` runs them).
 
 Each atlas texel stands for a point of the micro-surface (the base point of its face and
 barycentrics, moved by the height map along the interpolated direction); the nearest point of
@@ -24,38 +25,18 @@ class TransferError(ValueError):
     """Inputs a texture cannot be carried over with."""
 
 
-def transfer_texture(mm: MicroMesh, maps: Maps, source: TriMesh, source_uv: np.ndarray,
-                     image: np.ndarray, padding: int = 4, chunk: int = 1 << 20) -> np.ndarray:
-    """The source's ``image`` (H, W, C, row 0 at v = 0) on ``maps``' atlas: (R, R, C) float32
-    (:func:`transfer_textures` with one image)."""
-    return transfer_textures(mm, maps, source, source_uv, [image], padding, chunk)[0]
+class TextureSink:
+    """One image of the source, sampled at each texel's source UV (bilinear)."""
 
+    def __init__(self, image, res: int) -> None:
+        self.image = checked_image(image)
+        self.out = np.zeros((res, res, self.image.shape[2]))
 
-def transfer_textures(mm: MicroMesh, maps: Maps, source: TriMesh, source_uv: np.ndarray,
-                      images: list, padding: int = 4, chunk: int = 1 << 20) -> list:
-    """The source's ``images`` (each (H, W[, C]), row 0 at v = 0, all mapped by the same UVs)
-    on ``maps``' atlas: a list of (R, R, C) float32, one per image. The nearest source point
-    of each texel is found once for all of them.
+    def add(self, p: "SourcePoints", at: np.ndarray) -> None:
+        self.out[p.y, p.x] = sample(self.image, at)
 
-    Args:
-        mm: the micro-mesh the maps were baked from (the frame of ``source``).
-        maps: its height map and atlas (:func:`core.maps.bake_maps`).
-        source: the textured surface, usually the construction's reference.
-        source_uv: (source.n_faces, 3, 2) the UVs of its triangles' corners.
-        images: its textures (base colour, roughness, ...); any number of channels each.
-    """
-    uv = checked_uv(source, source_uv)
-    first = {}                        # the same array given twice is carried once
-    slot = [first.setdefault(id(image), len(first)) for image in images]
-    imgs = [checked_image(image) for image in {id(i): i for i in images}.values()]
-    res = maps.height.shape[0]
-    outs = [np.zeros((res, res, img.shape[2])) for img in imgs]
-    for p in source_points(mm, maps, source, chunk):
-        at = np.einsum("qk,qkc->qc", p.bary, uv[p.face])
-        for img, out in zip(imgs, outs):
-            out[p.y, p.x] = sample(img, at)
-    done = [dilate(out, maps.filled, padding).astype(np.float32) for out in outs]
-    return [done[k] for k in slot]
+    def done(self, maps: Maps, padding: int) -> np.ndarray:
+        return dilate(self.out, maps.filled, padding).astype(np.float32)
 
 
 @dataclass(eq=False)
