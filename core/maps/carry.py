@@ -1,5 +1,6 @@
 """The source's images carried onto the base's atlas in one pass: each texel's nearest source
-point is found once (``transfer.source_points``) and every image is sampled there (``transfer.TextureSink``, ``normal_transfer.NormalSink``)."""
+point is found once (``transfer.source_points``) and every image is sampled there
+(``transfer.TextureSink``, ``normal_transfer.NormalSink``)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
