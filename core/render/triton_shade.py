@@ -2,9 +2,10 @@
 perspective-correct barycentrics of the visible face, SH shading of the interpolated normal
 ("shaded") or of the face's own normal ("flat"), and the analytic backward.
 
-The backward runs one lane per face over that face's pixels (in pixel order) and then one lane
-per vertex over its corners (in corner order): every sum is made in a fixed order, with no
-atomics, so the gradient is the same on every run. Float64 arithmetic, as the numba kernels.
+The backward runs one lane per face over that face's pixels (in pixel order); the corners'
+parts are then summed per vertex by ``corner_sums``. Every sum is made in a fixed order, with
+no atomics, so the gradient is the same on every run. Float64 arithmetic, as the numba
+kernels.
 
 Arrays: verts, vn (N, 3) float; faces (M, 3) int64; mvp (B, 16) float64; tri (B * H * W,) int32
 (-1: background); q (30,) float64, per channel [k, b0, b1, b2, a00, a11, a22, a01, a02, a12]
