@@ -89,7 +89,7 @@ def bake_maps(mm: MicroMesh, resolution: int = 2048, padding: int = 4,
         m = facet[hit.face]
         tv = tangents[atlas.faces[f]]                              # (q, 3, 4)
         tl = np.einsum("qk,qkc->qc", b, tv[..., :3])
-        t = unit(tl - n * (tl * n).sum(1, keepdims=True))
+        t = orthogonal_tangent(n, tl)
         bt = np.cross(n, t) * tv[:, 0, 3:4]
         normal[y, x] = np.stack([(m * t).sum(1), (m * bt).sum(1), (m * n).sum(1)], 1)
     height = dilate(height, filled, padding)
