@@ -119,14 +119,14 @@ def antialias_torch(color: torch.Tensor, verts: torch.Tensor, faces: torch.Tenso
     differ = [tri_id.narrow(a, 0, tri_id.shape[a] - 1) != tri_id.narrow(a, 1, tri_id.shape[a] - 1)
               for a in axes]
     pairs = [torch.nonzero(d, as_tuple=True) for d in differ]
-    walked = [_walked(p, a, tri_id, depth, vd, f_all, nbr.long(), facing, m64, fused)
+    nbr, mdt = nbr.long(), mvp.to(verts.dtype)
+    walked = [_walked(p, a, tri_id, depth, vd, f_all, nbr, facing, m64, fused)
               for p, a in zip(pairs, axes)]
     valid = [torch.nonzero(w[-1] >= 0).squeeze(1) if w is not None else None for w in walked]
     out = color
     for a, w, v in zip(axes, walked, valid):
         if v is not None and len(v):
-            out = _blend(out, color, verts, f_all, mvp.to(verts.dtype), a == 1,
-                         *(x[v] for x in w))
+            out = _blend(out, color, verts, f_all, mdt, a == 1, *(x[v] for x in w))
     return out
 
 

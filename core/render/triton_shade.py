@@ -20,7 +20,8 @@ if triton is not None:
     NORMAL_EPS_F = tl.constexpr(NORMAL_EPS)  # kernels read only constexpr globals
 
     @triton.jit
-    def _vert(ptr, i, mask):
+    def vertex_at(ptr, i, mask):
+        """Row ``i`` of an (N, 3) array as three float64 values per lane."""
         return (tl.load(ptr + i * 3, mask=mask, other=0.0).to(tl.float64),
                 tl.load(ptr + i * 3 + 1, mask=mask, other=0.0).to(tl.float64),
                 tl.load(ptr + i * 3 + 2, mask=mask, other=0.0).to(tl.float64))
@@ -62,9 +63,9 @@ if triton is not None:
 
     @triton.jit
     def _face_normal(v_ptr, i0, i1, i2, mask):
-        p0, p1, p2 = _vert(v_ptr, i0, mask)
-        ax, ay, az = _vert(v_ptr, i1, mask)
-        bx, by, bz = _vert(v_ptr, i2, mask)
+        p0, p1, p2 = vertex_at(v_ptr, i0, mask)
+        ax, ay, az = vertex_at(v_ptr, i1, mask)
+        bx, by, bz = vertex_at(v_ptr, i2, mask)
         ax, ay, az, bx, by, bz = ax - p0, ay - p1, az - p2, bx - p0, by - p1, bz - p2
         nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
         inv = 1.0 / tl.sqrt(nx * nx + ny * ny + nz * nz + NORMAL_EPS_F)
@@ -73,13 +74,13 @@ if triton is not None:
     @triton.jit
     def _pixel(v_ptr, vn_ptr, m_ptr, i0, i1, i2, x, y, mask):
         """Barycentrics of pixel NDC (x, y) on a face and its interpolated unit normal."""
-        p0, p1, p2 = _vert(v_ptr, i0, mask)
+        p0, p1, p2 = vertex_at(v_ptr, i0, mask)
         x0, y0, w0 = clip_row(m_ptr, 0, p0, p1, p2, mask), clip_row(m_ptr, 1, p0, p1, p2, mask), \
             clip_row(m_ptr, 3, p0, p1, p2, mask)
-        p0, p1, p2 = _vert(v_ptr, i1, mask)
+        p0, p1, p2 = vertex_at(v_ptr, i1, mask)
         x1, y1, w1 = clip_row(m_ptr, 0, p0, p1, p2, mask), clip_row(m_ptr, 1, p0, p1, p2, mask), \
             clip_row(m_ptr, 3, p0, p1, p2, mask)
-        p0, p1, p2 = _vert(v_ptr, i2, mask)
+        p0, p1, p2 = vertex_at(v_ptr, i2, mask)
         x2, y2, w2 = clip_row(m_ptr, 0, p0, p1, p2, mask), clip_row(m_ptr, 1, p0, p1, p2, mask), \
             clip_row(m_ptr, 3, p0, p1, p2, mask)
         u0, u1, u2 = x0 - x * w0, x1 - x * w1, x2 - x * w2
@@ -88,9 +89,9 @@ if triton is not None:
         s = s0 + s1 + s2
         s = tl.where(tl.abs(s) < 1e-300, 1e-300, s)
         b0, b1, b2 = s0 / s, s1 / s, s2 / s
-        a0, a1, a2 = _vert(vn_ptr, i0, mask)
-        c0, c1, c2 = _vert(vn_ptr, i1, mask)
-        d0, d1, d2 = _vert(vn_ptr, i2, mask)
+        a0, a1, a2 = vertex_at(vn_ptr, i0, mask)
+        c0, c1, c2 = vertex_at(vn_ptr, i1, mask)
+        d0, d1, d2 = vertex_at(vn_ptr, i2, mask)
         n0 = b0 * a0 + b1 * c0 + b2 * d0
         n1 = b0 * a1 + b1 * c1 + b2 * d1
         n2 = b0 * a2 + b1 * c2 + b2 * d2

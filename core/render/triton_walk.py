@@ -10,21 +10,19 @@ from .triton_kernels import BLOCK_SIZE, guarded, tl, triton
 
 
 if triton is not None:
-    from .triton_shade import clip_row
+    from .triton_shade import clip_row, vertex_at
+
+    @triton.jit
+    def _clip(vd_ptr, m_ptr, vi, mask):
+        """Clip x, y, z, w of vertex ``vi`` under the view matrix at ``m_ptr``."""
+        vx, vy, vz = vertex_at(vd_ptr, vi, mask)
+        return (clip_row(m_ptr, 0, vx, vy, vz, mask), clip_row(m_ptr, 1, vx, vy, vz, mask),
+                clip_row(m_ptr, 2, vx, vy, vz, mask), clip_row(m_ptr, 3, vx, vy, vz, mask))
 
     @triton.jit
     def _screen(vd_ptr, m_ptr, b, vi, width, height, mask):
         """Screen x, y of vertex ``vi`` in view ``b`` (``torch_antialias._face_screen``) and w > 0."""
-        vx = tl.load(vd_ptr + vi * 3, mask=mask, other=0.0)
-        vy = tl.load(vd_ptr + vi * 3 + 1, mask=mask, other=0.0)
-        vz = tl.load(vd_ptr + vi * 3 + 2, mask=mask, other=0.0)
-        mb = m_ptr + b * 16
-        x = ((tl.load(mb, mask=mask, other=0.0) * vx + tl.load(mb + 1, mask=mask, other=0.0) * vy)
-             + tl.load(mb + 2, mask=mask, other=0.0) * vz) + tl.load(mb + 3, mask=mask, other=0.0)
-        y = ((tl.load(mb + 4, mask=mask, other=0.0) * vx + tl.load(mb + 5, mask=mask, other=0.0) * vy)
-             + tl.load(mb + 6, mask=mask, other=0.0) * vz) + tl.load(mb + 7, mask=mask, other=0.0)
-        w = ((tl.load(mb + 12, mask=mask, other=0.0) * vx + tl.load(mb + 13, mask=mask, other=0.0) * vy)
-             + tl.load(mb + 14, mask=mask, other=0.0) * vz) + tl.load(mb + 15, mask=mask, other=1.0)
+        x, y, _, w = _clip(vd_ptr, m_ptr + b * 16, vi, mask)
         ws = tl.where(w > 0, w, 1.0)
         return (x / ws + 1.0) * (0.5 * width), (1.0 - y / ws) * (0.5 * height), w > 0
 
@@ -127,11 +125,7 @@ if triton is not None:
     @triton.jit
     def _projected(vd_ptr, m_ptr, vi, width, height, mask):
         """Screen x, y, clip z, w of vertex ``vi`` (``torch_path.project``'s arithmetic)."""
-        vx = tl.load(vd_ptr + vi * 3, mask=mask, other=0.0)
-        vy = tl.load(vd_ptr + vi * 3 + 1, mask=mask, other=0.0)
-        vz = tl.load(vd_ptr + vi * 3 + 2, mask=mask, other=0.0)
-        x, y = clip_row(m_ptr, 0, vx, vy, vz, mask), clip_row(m_ptr, 1, vx, vy, vz, mask)
-        z, w = clip_row(m_ptr, 2, vx, vy, vz, mask), clip_row(m_ptr, 3, vx, vy, vz, mask)
+        x, y, z, w = _clip(vd_ptr, m_ptr, vi, mask)
         return (x / w + 1.0) * (0.5 * width), (1.0 - y / w) * (0.5 * height), z, w
 
     @triton.jit
