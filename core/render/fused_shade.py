@@ -1,5 +1,5 @@
 """The torch path's shading ("shaded" and "flat") as one autograd op on fused Triton kernels
-(``triton_shade``): no per-pixel gathers or scatters through torch, and a backward that adds
+(``triton_shade``, ``triton_shade_grad``): no per-pixel gathers or scatters through torch, and a backward that adds
 every pixel's and corner's part in a fixed order (the same gradient on every run).
 
 ``shade`` returns None where the kernels cannot run (no Triton, not CUDA, a compiler or driver
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from . import triton_kernels, triton_shade
+from . import triton_kernels, triton_shade, triton_shade_grad
 from .corner_sums import segments, vertex_sums
 from .sh import SH_QUADRATIC
 from .triton_kernels import BLOCK_SIZE, guarded, triton
@@ -50,7 +50,7 @@ def _backward(verts, vn, faces, mvp16, tri, gout, flat: bool, width: int, height
     order, start, count = segments(tri, n_faces)
     fg = torch.empty((n_faces * 3, 6), dtype=torch.float64, device=dev)
     if n_faces:
-        triton_shade.shade_backward_kernel[(triton.cdiv(n_faces, BLOCK_SIZE),)](
+        triton_shade_grad.shade_backward_kernel[(triton.cdiv(n_faces, BLOCK_SIZE),)](
             verts, vn, faces, mvp16, order, start, count, gout, _quadratic(dev), fg, n_faces,
             width, height, FLAT=flat, BLOCK=BLOCK_SIZE)
     return vertex_sums(faces, fg, n_verts)

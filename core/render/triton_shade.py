@@ -1,11 +1,11 @@
 """The shading's per-pixel work as Triton kernels, the CUDA twin of ``shade.py``'s numba ones:
 perspective-correct barycentrics of the visible face, SH shading of the interpolated normal
-("shaded") or of the face's own normal ("flat"), and the analytic backward.
+("shaded") or of the face's own normal ("flat"); the helpers its backward shares.
 
-The backward runs one lane per face over that face's pixels (in pixel order); the corners'
-parts are then summed per vertex by ``corner_sums``. Every sum is made in a fixed order, with
-no atomics, so the gradient is the same on every run. Float64 arithmetic, as the numba
-kernels.
+The backward (``triton_shade_grad``) runs one lane per face over that face's pixels (in pixel
+order); the corners' parts are then summed per vertex by ``corner_sums``. Every sum is made in
+a fixed order, with no atomics, so the gradient is the same on every run. Float64 arithmetic,
+as the numba kernels.
 
 Arrays: verts, vn (N, 3) float; faces (M, 3) int64; mvp (B, 16) float64; tri (B * H * W,) int32
 (-1: background); q (30,) float64, per channel [k, b0, b1, b2, a00, a11, a22, a01, a02, a12]
@@ -52,7 +52,7 @@ if triton is not None:
                 g * (tl.load(o + 3) + 2.0 * (a02 * n0 + a12 * n1 + a22 * n2)))
 
     @triton.jit
-    def _unnormalized(q_ptr, g0, g1, g2, n0, n1, n2, inv):
+    def unnormalized_grad(q_ptr, g0, g1, g2, n0, n1, n2, inv):
         """Gradient w.r.t. v of the shading of n = v / |v| (upstream g0..g2 per channel)."""
         a0, a1, a2 = _sh_grad_c(q_ptr, 0, g0, n0, n1, n2)
         b0, b1, b2 = _sh_grad_c(q_ptr, 1, g1, n0, n1, n2)
@@ -62,7 +62,7 @@ if triton is not None:
         return (h0 - n0 * d) * inv, (h1 - n1 * d) * inv, (h2 - n2 * d) * inv
 
     @triton.jit
-    def _face_normal(v_ptr, i0, i1, i2, mask):
+    def face_normal(v_ptr, i0, i1, i2, mask):
         p0, p1, p2 = vertex_at(v_ptr, i0, mask)
         ax, ay, az = vertex_at(v_ptr, i1, mask)
         bx, by, bz = vertex_at(v_ptr, i2, mask)
@@ -72,7 +72,7 @@ if triton is not None:
         return nx * inv, ny * inv, nz * inv, inv, ax, ay, az, bx, by, bz
 
     @triton.jit
-    def _pixel(v_ptr, vn_ptr, m_ptr, i0, i1, i2, x, y, mask):
+    def pixel(v_ptr, vn_ptr, m_ptr, i0, i1, i2, x, y, mask):
         """Barycentrics of pixel NDC (x, y) on a face and its interpolated unit normal."""
         p0, p1, p2 = vertex_at(v_ptr, i0, mask)
         x0, y0, w0 = clip_row(m_ptr, 0, p0, p1, p2, mask), clip_row(m_ptr, 1, p0, p1, p2, mask), \
@@ -100,7 +100,7 @@ if triton is not None:
                 a0, a1, a2, c0, c1, c2, d0, d1, d2)
 
     @triton.jit
-    def _ndc(p, width, height):
+    def ndc(p, width, height):
         hw = width * height
         rem = p % hw
         r, c = (rem // width).to(tl.float64), (rem % width).to(tl.float64)
@@ -119,97 +119,11 @@ if triton is not None:
         i1 = tl.load(f_ptr + face * 3 + 1, mask=live, other=0)
         i2 = tl.load(f_ptr + face * 3 + 2, mask=live, other=0)
         if FLAT:
-            n0, n1, n2, _, _, _, _, _, _, _ = _face_normal(v_ptr, i0, i1, i2, live)
+            n0, n1, n2, _, _, _, _, _, _, _ = face_normal(v_ptr, i0, i1, i2, live)
         else:
-            b, x, y = _ndc(p, width, height)
-            _, _, _, _, _, _, _, _, _, _, n0, n1, n2, _, _, _, _, _, _, _, _, _, _ = _pixel(
+            b, x, y = ndc(p, width, height)
+            _, _, _, _, _, _, _, _, _, _, n0, n1, n2, _, _, _, _, _, _, _, _, _, _ = pixel(
                 v_ptr, vn_ptr, m_ptr + b * 16, i0, i1, i2, x, y, live)
         for c in tl.static_range(3):
             val = tl.where(live, _shade(q_ptr, c, n0, n1, n2), 0.0)
             tl.store(out_ptr + p * 3 + c, val.to(out_ptr.dtype.element_ty), mask=inb)
-
-    @triton.jit
-    def _bary_backward(g0, g1, g2, b0, b1, b2, s, u0, u1, u2, t0, t1, t2):
-        gs = g0 * b0 + g1 * b1 + g2 * b2
-        h0, h1, h2 = (g0 - gs) / s, (g1 - gs) / s, (g2 - gs) / s
-        return (h2 * t1 - h1 * t2, h0 * t2 - h2 * t0, h1 * t0 - h0 * t1,
-                h1 * u2 - h2 * u1, h2 * u0 - h0 * u2, h0 * u1 - h1 * u0)
-
-    @triton.jit
-    def _to_vertex(m_ptr, j: tl.constexpr, gu, gt, gw, mask):
-        """Component j of a clip-space gradient (x, y, w) taken back through the view matrix."""
-        return (tl.load(m_ptr + j, mask=mask, other=0.0) * gu
-                + tl.load(m_ptr + 4 + j, mask=mask, other=0.0) * gt
-                + tl.load(m_ptr + 12 + j, mask=mask, other=0.0) * gw)
-
-    @triton.jit
-    def _store_corner(fg_ptr, face, k: tl.constexpr, gx, gy, gz, nx, ny, nz, mask):
-        o = fg_ptr + face * 18 + 6 * k
-        tl.store(o, gx, mask=mask)
-        tl.store(o + 1, gy, mask=mask)
-        tl.store(o + 2, gz, mask=mask)
-        tl.store(o + 3, nx, mask=mask)
-        tl.store(o + 4, ny, mask=mask)
-        tl.store(o + 5, nz, mask=mask)
-
-    @triton.jit
-    def shade_backward_kernel(v_ptr, vn_ptr, f_ptr, m_ptr, order_ptr, start_ptr, count_ptr,
-                              gout_ptr, q_ptr, fg_ptr, n_faces, width, height,
-                              FLAT: tl.constexpr, BLOCK: tl.constexpr):
-        """fg (M, 3, 6) <- per face and corner, d(sum gout * image)/d (vertex, vertex normal),
-        summed over the face's pixels ``order[start[f]:start[f] + count[f]]``."""
-        face = tl.program_id(0).to(tl.int64) * BLOCK + tl.arange(0, BLOCK)
-        live = face < n_faces
-        i0 = tl.load(f_ptr + face * 3, mask=live, other=0)
-        i1 = tl.load(f_ptr + face * 3 + 1, mask=live, other=0)
-        i2 = tl.load(f_ptr + face * 3 + 2, mask=live, other=0)
-        start = tl.load(start_ptr + face, mask=live, other=0)
-        count = tl.load(count_ptr + face, mask=live, other=0)
-        zero = tl.zeros((BLOCK,), tl.float64)
-        v0x, v0y, v0z, v1x, v1y, v1z, v2x, v2y, v2z = zero, zero, zero, zero, zero, zero, zero, zero, zero
-        n0x, n0y, n0z, n1x, n1y, n1z, n2x, n2y, n2z = zero, zero, zero, zero, zero, zero, zero, zero, zero
-        gs0, gs1, gs2 = zero, zero, zero
-        n_max = tl.max(count, axis=0)
-        j = 0
-        while j < n_max:
-            run = j < count
-            p = tl.load(order_ptr + start + j, mask=run, other=0)
-            g0 = tl.load(gout_ptr + p * 3, mask=run, other=0.0).to(tl.float64)
-            g1 = tl.load(gout_ptr + p * 3 + 1, mask=run, other=0.0).to(tl.float64)
-            g2 = tl.load(gout_ptr + p * 3 + 2, mask=run, other=0.0).to(tl.float64)
-            if FLAT:
-                gs0, gs1, gs2 = gs0 + g0, gs1 + g1, gs2 + g2
-            else:
-                b, x, y = _ndc(p, width, height)
-                mb = m_ptr + b * 16
-                b0, b1, b2, s, u0, u1, u2, t0, t1, t2, n0, n1, n2, inv, a0, a1, a2, c0, c1, c2, \
-                    d0, d1, d2 = _pixel(v_ptr, vn_ptr, mb, i0, i1, i2, x, y, run)
-                k0, k1, k2 = _unnormalized(q_ptr, g0, g1, g2, n0, n1, n2, inv)
-                k0, k1, k2 = tl.where(run, k0, 0.0), tl.where(run, k1, 0.0), tl.where(run, k2, 0.0)
-                n0x, n0y, n0z = n0x + b0 * k0, n0y + b0 * k1, n0z + b0 * k2
-                n1x, n1y, n1z = n1x + b1 * k0, n1y + b1 * k1, n1z + b1 * k2
-                n2x, n2y, n2z = n2x + b2 * k0, n2y + b2 * k1, n2z + b2 * k2
-                gu0, gu1, gu2, gt0, gt1, gt2 = _bary_backward(
-                    k0 * a0 + k1 * a1 + k2 * a2, k0 * c0 + k1 * c1 + k2 * c2,
-                    k0 * d0 + k1 * d1 + k2 * d2, b0, b1, b2, s, u0, u1, u2, t0, t1, t2)
-                gw0, gw1, gw2 = -x * gu0 - y * gt0, -x * gu1 - y * gt1, -x * gu2 - y * gt2
-                v0x += _to_vertex(mb, 0, gu0, gt0, gw0, run)
-                v0y += _to_vertex(mb, 1, gu0, gt0, gw0, run)
-                v0z += _to_vertex(mb, 2, gu0, gt0, gw0, run)
-                v1x += _to_vertex(mb, 0, gu1, gt1, gw1, run)
-                v1y += _to_vertex(mb, 1, gu1, gt1, gw1, run)
-                v1z += _to_vertex(mb, 2, gu1, gt1, gw1, run)
-                v2x += _to_vertex(mb, 0, gu2, gt2, gw2, run)
-                v2y += _to_vertex(mb, 1, gu2, gt2, gw2, run)
-                v2z += _to_vertex(mb, 2, gu2, gt2, gw2, run)
-            j += 1
-        if FLAT:
-            n0, n1, n2, inv, ax, ay, az, bx, by, bz = _face_normal(v_ptr, i0, i1, i2, live)
-            k0, k1, k2 = _unnormalized(q_ptr, gs0, gs1, gs2, n0, n1, n2, inv)
-            # cross = a x b: d/da = b x k, d/db = k x a; vertex 0 moves both a and b
-            v1x, v1y, v1z = by * k2 - bz * k1, bz * k0 - bx * k2, bx * k1 - by * k0
-            v2x, v2y, v2z = k1 * az - k2 * ay, k2 * ax - k0 * az, k0 * ay - k1 * ax
-            v0x, v0y, v0z = -(v1x + v2x), -(v1y + v2y), -(v1z + v2z)
-        _store_corner(fg_ptr, face, 0, v0x, v0y, v0z, n0x, n0y, n0z, live)
-        _store_corner(fg_ptr, face, 1, v1x, v1y, v1z, n1x, n1y, n1z, live)
-        _store_corner(fg_ptr, face, 2, v2x, v2y, v2z, n2x, n2y, n2z, live)
