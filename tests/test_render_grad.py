@@ -228,19 +228,19 @@ def test_cuda_gradients_are_the_same_on_every_run(kind):
 def test_cuda_fused_kernels_agree_with_the_plain_torch_path():
     """The rasteriser's pixel loop and the antialiasing walk as Triton kernels give the plain
     torch path's coverage and images (sub-pixel faces: long walks)."""
-    from core.render import torch_antialias, torch_path
+    from core.render import torch_antialias, torch_raster
     from core.render.topology import face_neighbours
     from core.render.types import camera_mvp
 
-    if not torch_path.fused_default(torch.device("cuda")):
+    if not torch_raster.fused_default(torch.device("cuda")):
         pytest.skip("Triton is not installed")
     v, f = tensors(*icosphere(6, noise=0.03))          # 82k faces
     v, f = v.cuda(), f.cuda()
     for width in (64, 256):
         cams = fibonacci_cameras(6, width=width)
         mvp = camera_mvp(cams, v.device)
-        plain = torch_path.rasterize_torch(v, f, mvp, width, width, fused=False)
-        fused = torch_path.rasterize_torch(v, f, mvp, width, width, fused=True)
+        plain = torch_raster.rasterize_torch(v, f, mvp, width, width, fused=False)
+        fused = torch_raster.rasterize_torch(v, f, mvp, width, width, fused=True)
         assert (plain[0] == fused[0]).float().mean() >= 0.9999
         img = render(v, f, cams, kind="shaded", antialias=False)
         nbr = face_neighbours(f)
@@ -261,16 +261,16 @@ def test_cuda_fused_shading_and_normals_agree_with_the_plain_torch_path(dtype):
     """The shading ("shaded", "flat") and the vertex normals as Triton kernels with their
     fixed-order backward give the plain torch path's images and gradients (the plain path in
     float64: the kernels compute in float64 whatever the vertices' type)."""
-    from core.render import fused_normals, fused_shade, geometry, torch_path
+    from core.render import fused_normals, fused_shade, geometry, torch_path, torch_raster
     from core.render.types import camera_mvp
 
-    if not torch_path.fused_default(torch.device("cuda")):
+    if not torch_raster.fused_default(torch.device("cuda")):
         pytest.skip("Triton is not installed")
     v, f = tensors(*icosphere(5, noise=0.03))
     v, f = v.cuda().to(dtype), f.cuda()
     cams = fibonacci_cameras(5, width=96)
     mvp = camera_mvp(cams, v.device)
-    tri = torch_path.rasterize_torch(v, f, mvp, 96, 96)[0]
+    tri = torch_raster.rasterize_torch(v, f, mvp, 96, 96)[0]
     g = torch.randn((5, 96, 96, 3), generator=torch.Generator().manual_seed(3)).cuda().to(dtype)
     tol = dict(rtol=1e-5, atol=1e-6) if dtype == torch.float32 else dict(rtol=1e-9, atol=1e-12)
     for kind in ("shaded", "flat"):

@@ -13,8 +13,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from core.cameras import fibonacci_cameras  # noqa: E402
 from core.render import (fused_normals, fused_shade, geometry, rasterize, render_loss,  # noqa: E402
-                         reference_images, torch_antialias, torch_path, triton_kernels,
-                         triton_walk)
+                         reference_images, torch_antialias, torch_path, torch_raster,
+                         triton_kernels, triton_walk)
 from core.render.types import camera_mvp  # noqa: E402
 from tests.test_render import icosphere, tensors  # noqa: E402
 
@@ -30,7 +30,7 @@ def main() -> None:
     v = v.double()
     cams = fibonacci_cameras(3, width=40)
     mvp = camera_mvp(cams, v.device)
-    tri = torch_path.rasterize_torch(v, f, mvp, 40, 40, fused=False)[0]
+    tri = torch_raster.rasterize_torch(v, f, mvp, 40, 40, fused=False)[0]
     g = torch.rand((3, 40, 40, 3), generator=torch.Generator().manual_seed(1), dtype=v.dtype)
     for kind in ("shaded", "flat"):
         out = []

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import torch
 
-from . import torch_antialias, torch_path
+from . import torch_antialias, torch_path, torch_raster
 from .geometry import vertex_normals
 from .scatter import gather
 from .topology import face_neighbours
@@ -34,7 +34,7 @@ def rasterize(verts: torch.Tensor, faces: torch.Tensor, cams, *, backend: str = 
         if be == "numba":
             tri, depth, flags = _numba().rasterize_numba(verts, faces, mvp, cams.width, cams.height)
         else:
-            tri, depth = torch_path.rasterize_torch(verts, faces, mvp, cams.width, cams.height)
+            tri, depth = torch_raster.rasterize_torch(verts, faces, mvp, cams.width, cams.height)
     return Raster(tri, depth, mvp, int(cams.width), int(cams.height), len(faces), flags)
 
 

@@ -2,7 +2,7 @@
 
 One buffer per view; ``prange`` over thread slots, each slot owns an explicit scratch array of
 projected vertices and handles views slot, slot + T, ... (no shared scratch, no races).
-Coverage uses the same float64 arithmetic as ``torch_path.rasterize_torch``: canonical edge
+Coverage uses the same float64 arithmetic as ``torch_raster.rasterize_torch``: canonical edge
 functions (from the lower to the higher vertex id, so a shared edge gives exactly opposite
 values; E == 0 belongs to the face that walks the edge upwards in id) and the nearest float32
 depth wins, ties to the smaller face id. Faces with a vertex behind the near plane are dropped.

@@ -9,7 +9,8 @@ import torch
 from . import triton_walk
 from .scatter import scatter_add
 from .silhouette import MAX_WALK, WALK_DEPTH_RATIO
-from .torch_path import _limits, _view_groups, clip_xyw, fused_default, project
+from .torch_path import clip_xyw
+from .torch_raster import _limits, _view_groups, fused_default, project
 
 
 def face_facing(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor, width: int,

@@ -124,7 +124,7 @@ if triton is not None:
 
     @triton.jit
     def _projected(vd_ptr, m_ptr, vi, width, height, mask):
-        """Screen x, y, clip z, w of vertex ``vi`` (``torch_path.project``'s arithmetic)."""
+        """Screen x, y, clip z, w of vertex ``vi`` (``torch_raster.project``'s arithmetic)."""
         x, y, z, w = _clip(vd_ptr, m_ptr, vi, mask)
         return (x / w + 1.0) * (0.5 * width), (1.0 - y / w) * (0.5 * height), z, w
 
