@@ -90,7 +90,7 @@ def ours(name: str, label: str, python: str, out: Path, overrides: list[str],
 def main() -> None:
     p = parser(__doc__.splitlines()[0])
     p.add_argument("--meshes", nargs="+", default=None, help="default: every mesh in ../shared/meshes")
-    p.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
+    p.add_argument("--set", nargs="+", action="extend", default=[], metavar="KEY=VALUE",
                    help="settings overrides for our row (a non-default row, labelled so)")
     p.add_argument("--staged", action="store_true", help="add our staged baseline row")
     p.add_argument("--judge-python", default=os.environ.get("MICROMESH_JUDGE_PYTHON",
