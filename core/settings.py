@@ -87,6 +87,9 @@ class ConstructSettings:
     w_sv: float = 10.0
     w_range: float = 0.0             # shell range term (ours; core.losses.shell_range_loss)
     w_iso: float = 1.0
+    paper_losses: bool = False       # L_sv and L_iso as published: in the unit-sphere frame,
+                                     # not divided by h², and L_iso's gradient through the
+                                     # optimiser with the others (ours: a tangent step of its own)
 
     # cameras and images
     n_views: int = 24
@@ -161,7 +164,7 @@ PRESETS: dict[str, dict] = {
     "paper": dict(iterations=1600, subdivide_at=(50, 150, 400, 800), views_per_iter=24,
                   train_resolution=512, lod_resolution=512, max_level=4, freeze_base_at=1200,
                   lr_base=1e-3, lr_disp=1e-3, shading="shaded", init_new_levels="interpolate",
-                  final_fit=False, lod="in_optim"),
+                  final_fit=False, lod="in_optim", paper_losses=True),
 }
 
 

@@ -16,8 +16,11 @@ def step(params: Parameters, s: ConstructSettings, cams, target: torch.Tensor, h
     add the regularisers, step the optimiser. Returns (loss, render loss, image MSE).
 
     ``h``: the length that scale-normalises L_sv, L_range and L_iso (the base's initial mean
-    edge length in the unit frame), so their weights mean the same on every mesh and base.
+    edge length in the unit frame), so their weights mean the same on every mesh and base;
+    with ``s.paper_losses`` they are the paper's (unit frame, h = 1, L_iso in the loss).
     ``frozen``: the base does not move; ``warm_up``: only the base moves."""
+    if s.paper_losses:
+        h = 1.0
     opt = params.optimizer
     opt.zero_grad(set_to_none=True)
     P, N, D, X = params.geometry(detach_base=frozen)
@@ -34,6 +37,8 @@ def step(params: Parameters, s: ConstructSettings, cams, target: torch.Tensor, h
         if not frozen:
             reg = reg + laplacian_smoothing_loss(P, params.base_L)
         loss = loss + s.laplacian_weight * reg
+    if s.paper_losses and s.w_iso > 0 and not frozen:
+        loss = loss + s.w_iso * isotropy_loss(P, params.F, h)
     loss.backward()
     trained = ([] if warm_up else [params.disp.param]) + ([] if frozen else [params.offsets.param])
     if frozen:
@@ -43,7 +48,7 @@ def step(params: Parameters, s: ConstructSettings, cams, target: torch.Tensor, h
     clip_gradients(trained, s.grad_clip)
     opt.step()
     total = float(loss.detach())
-    if s.w_iso > 0 and not frozen:
+    if s.w_iso > 0 and not frozen and not s.paper_losses:
         total += _isotropy_step(params, s, h)
     mse = float((diff.detach() ** 2).mean())
     return total, float(l_render.detach()), mse
