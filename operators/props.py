@@ -18,9 +18,9 @@ PRESET_ITEMS = [
 
 
 def _update_strength(settings, context) -> None:
-    from . import writeback
+    from . import preview
 
-    writeback.set_preview_strength(context.scene, settings.preview_strength)
+    preview.set_preview_strength(context.scene, settings.preview_strength)
 
 
 def _is_mesh(_self, obj) -> bool:

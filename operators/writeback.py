@@ -3,7 +3,7 @@
 - the result object ``<source>_micromesh``: the displaced tessellation as a real mesh with
   per-face ``micromesh_base_face`` / ``micromesh_level``, per-vertex ``micromesh_displacement``
   / ``micromesh_direction``, level colours (``micromesh_level_color``, the active colour) and a
-  Geometry Nodes modifier that scales the displacement live (``Strength``);
+  Geometry Nodes modifier that scales the displacement live (``preview``);
 - the base object: optimised positions, per-face ``micromesh_level`` and
   ``micromesh_edge_flags``, per-vertex ``micromesh_direction``;
 - the complete micro-mesh (base, directions, levels, displacements, bounds) as compressed
@@ -20,9 +20,8 @@ import numpy as np
 from ..core.micromesh import MicroMesh
 from ..core.outcome import Outcome, pack, unpack
 from . import bl_mesh
+from .preview import add_preview_modifier
 
-PREVIEW_GROUP = "MicroMesh Displacement Preview"
-PREVIEW_MODIFIER = "MicroMesh Preview"
 DATA_KEY = "micromesh_data"
 REPORT_KEY = "micromesh_report_png"
 # One colour per level 0..5 (blue -> red), linear RGBA.
@@ -152,68 +151,6 @@ def base_levels(base_obj: bpy.types.Object, tri_polygon: np.ndarray) -> np.ndarr
         return None
     lv = read_attr(mesh, "micromesh_level", dtype=np.int64)
     return np.clip(lv[tri_polygon], 0, 5)
-
-
-# ---------------------------------------------------------------- preview
-def preview_group() -> bpy.types.NodeTree:
-    """Geometry Nodes group: position += (Strength − 1) · direction · displacement."""
-    ng = bpy.data.node_groups.get(PREVIEW_GROUP)
-    if ng is not None:
-        return ng
-    ng = bpy.data.node_groups.new(PREVIEW_GROUP, "GeometryNodeTree")
-    ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
-    s = ng.interface.new_socket("Strength", in_out="INPUT", socket_type="NodeSocketFloat")
-    s.default_value, s.min_value, s.max_value = 1.0, -10.0, 10.0
-    ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
-    n = ng.nodes
-    gin, gout = n.new("NodeGroupInput"), n.new("NodeGroupOutput")
-    direction = n.new("GeometryNodeInputNamedAttribute")
-    direction.data_type = "FLOAT_VECTOR"
-    direction.inputs["Name"].default_value = "micromesh_direction"
-    disp = n.new("GeometryNodeInputNamedAttribute")
-    disp.data_type = "FLOAT"
-    disp.inputs["Name"].default_value = "micromesh_displacement"
-    minus = n.new("ShaderNodeMath")
-    minus.operation = "SUBTRACT"
-    minus.inputs[1].default_value = 1.0
-    mul = n.new("ShaderNodeMath")
-    mul.operation = "MULTIPLY"
-    scale = n.new("ShaderNodeVectorMath")
-    scale.operation = "SCALE"
-    setpos = n.new("GeometryNodeSetPosition")
-    link = ng.links.new
-    link(gin.outputs["Strength"], minus.inputs[0])
-    link(minus.outputs[0], mul.inputs[0])
-    link(disp.outputs["Attribute"], mul.inputs[1])
-    link(direction.outputs["Attribute"], scale.inputs[0])
-    link(mul.outputs[0], scale.inputs["Scale"])
-    link(gin.outputs["Geometry"], setpos.inputs["Geometry"])
-    link(scale.outputs[0], setpos.inputs["Offset"])
-    link(setpos.outputs["Geometry"], gout.inputs["Geometry"])
-    return ng
-
-
-def _strength_key(ng) -> str:
-    for item in ng.interface.items_tree:
-        if getattr(item, "in_out", "") == "INPUT" and item.name == "Strength":
-            return item.identifier
-    raise KeyError("Strength")
-
-
-def add_preview_modifier(obj: bpy.types.Object, strength: float = 1.0) -> bpy.types.Modifier:
-    mod = obj.modifiers.get(PREVIEW_MODIFIER) or obj.modifiers.new(PREVIEW_MODIFIER, "NODES")
-    mod.node_group = preview_group()
-    mod[_strength_key(mod.node_group)] = float(strength)
-    return mod
-
-
-def set_preview_strength(scene, strength: float) -> None:
-    """Set the preview strength on every result object of the scene."""
-    for obj in scene.objects:
-        mod = obj.modifiers.get(PREVIEW_MODIFIER)
-        if mod is not None and mod.node_group is not None:
-            mod[_strength_key(mod.node_group)] = float(strength)
-            obj.update_tag()
 
 
 def _jsonable(x):

@@ -11,7 +11,7 @@ import micromesh_path  # noqa: E402
 
 micromesh_path.ensure_package()
 from micromesh.core.cameras import supplement_up  # noqa: E402
-from micromesh.operators import bl_mesh, cameras_io, construct_op, job, writeback  # noqa: E402
+from micromesh.operators import bl_mesh, cameras_io, construct_op, job, preview, writeback  # noqa: E402
 
 
 pytestmark = pytest.mark.usefixtures("registered_addon")
@@ -143,7 +143,7 @@ def test_construct_projection_writes_consistent_attributes(scene):
 
     d = distance_to_mesh(out.micromesh.micro_vertex_positions(), ref.vertices, ref.faces)
     assert np.median(d) < 1e-3 and np.percentile(d, 95) < 0.02
-    assert res.modifiers[writeback.PREVIEW_MODIFIER].node_group.name == writeback.PREVIEW_GROUP
+    assert res.modifiers[preview.PREVIEW_MODIFIER].node_group.name == preview.PREVIEW_GROUP
     assert res.data.color_attributes.active_color.name == "micromesh_level_color"
 
 
