@@ -5,9 +5,9 @@ import bpy
 from bpy.app.handlers import persistent
 
 from ..install import deps
-from . import base_ops, construct_op, files_op, job, maps_op, misc_ops, props, warmup
+from . import base_ops, check_op, construct_op, files_op, job, maps_op, misc_ops, props, warmup
 
-CLASSES = (*base_ops.CLASSES, *construct_op.CLASSES, *misc_ops.CLASSES, *files_op.CLASSES,
+CLASSES = (*base_ops.CLASSES, *check_op.CLASSES, *construct_op.CLASSES, *misc_ops.CLASSES, *files_op.CLASSES,
            *maps_op.CLASSES)
 
 
