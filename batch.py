@@ -39,7 +39,7 @@ from micromesh.cli.usage import DEMO_NAME, check_usage  # noqa: E402
 def process(bpy, source, args, settings, out, interrupt: Interrupt) -> dict:
     """Base mesh, cameras, construction, write-back, save: the add-on's steps, headless.
     ``out``: the result's :class:`OutputSet` (committed here, when every file is written)."""
-    from micromesh.operators import (bl_decimate, bl_mesh, cameras_io, construct_op, pipeline,
+    from micromesh.operators import (bl_decimate, bl_mesh, cameras_io, construct_scene, pipeline,
                                      result_files, writeback)
 
     from micromesh.cli.progress import PhaseProgress
@@ -89,7 +89,7 @@ def process(bpy, source, args, settings, out, interrupt: Interrupt) -> dict:
             print(f"[{name}] note: {note}", flush=True)
     for warning in m.get("warnings", []):
         print(f"[{name}] warning: {warning}", flush=True)
-    obj = construct_op.finish(bpy.context, source, None, outcome, base_uv)   # as the panel does
+    obj = construct_scene.finish(bpy.context, source, None, outcome, base_uv)   # as the panel does
     if args.maps:
         m["maps"] = result_files.write_maps(bpy.context, outcome, source, args.maps, out,
                                             progress, base_obj=obj.micromesh_base)

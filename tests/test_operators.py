@@ -11,7 +11,7 @@ import micromesh_path  # noqa: E402
 
 micromesh_path.ensure_package()
 from micromesh.core.cameras import supplement_up  # noqa: E402
-from micromesh.operators import bl_mesh, cameras_io, construct_op, job, preview, writeback  # noqa: E402
+from micromesh.operators import bl_mesh, cameras_io, construct_op, construct_scene, job, preview, writeback  # noqa: E402
 
 
 pytestmark = pytest.mark.usefixtures("registered_addon")
@@ -244,7 +244,7 @@ def test_cancel_through_should_stop_leaves_no_new_objects(scene):
     _make_base(scene)
     names = set(bpy.data.objects.keys())
     n_meshes = len(bpy.data.meshes)
-    prep = construct_op.prepare(bpy.context, "projection")
+    prep = construct_scene.prepare(bpy.context, "projection")
     j = job.Job(prep.work)
     j.cancel()  # should_stop() is true from the first check
     j.start()
@@ -320,13 +320,15 @@ def test_bad_input_is_reported(scene):
 def test_closing_the_file_stops_a_running_construction(scene):
     import threading
 
+    from micromesh.operators.pipeline import PipelineCancelled
+
     running = threading.Event()
 
     def work(progress, should_stop):
         running.set()
         while not should_stop():
             running.wait(0.001)
-        raise construct_op.pipeline.PipelineCancelled()
+        raise PipelineCancelled()
 
     j = job.Job(work).start()
     running.wait(5)
