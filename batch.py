@@ -16,7 +16,6 @@ is done (the metrics file last), and existing results are kept unless ``--force`
 """
 from __future__ import annotations
 
-import json
 import os
 import sys
 import time
@@ -32,91 +31,8 @@ import micromesh_path  # noqa: E402  (the checkout as the package ``micromesh``)
 micromesh_path.ensure_package()
 from micromesh.cli.args import BatchError, parse_args  # noqa: E402
 from micromesh.cli.interrupt import Interrupt  # noqa: E402
+from micromesh.cli.one_input import process  # noqa: E402
 from micromesh.cli.usage import DEMO_NAME, check_usage  # noqa: E402
-
-
-# ------------------------------------------------------------------ one input
-def process(bpy, source, args, settings, out, interrupt: Interrupt) -> dict:
-    """Base mesh, cameras, construction, write-back, save: the add-on's steps, headless.
-    ``out``: the result's :class:`OutputSet` (committed here, when every file is written)."""
-    from micromesh.operators import (bl_decimate, bl_mesh, cameras_io, construct_scene, pipeline,
-                                     result_files, writeback)
-
-    from micromesh.cli.progress import PhaseProgress
-    from micromesh.core.base import target_faces
-
-    name = source.name
-    t0 = time.perf_counter()
-    notes: list[str] = []
-    reference = bl_mesh.mesh_to_arrays(source, notes=notes)
-    base_tm = base_uv = None
-    if args.base_method == "blender":      # as Make Base: the source's UVs carried along
-        target = min(target_faces(reference.n_faces, settings.base_ratio, settings.base_faces),
-                     reference.n_faces)
-        base_tm, base_uv = bl_decimate.decimate_object_uvs(source, target_faces=max(4, target),
-                                                       symmetry=args.symmetry)
-        print(f"[{name}] reference {reference.n_faces} triangles -> base {base_tm.n_faces} "
-              f"(Blender's Decimate, {time.perf_counter() - t0:.1f} s)", flush=True)
-    cams = None
-    if args.cameras:
-        coll = cameras_io.place_cameras(bpy.context.scene, reference, args.cameras,
-                                        settings.camera_radius, settings.fov_y_deg)
-        cams = cameras_io.collection_cameras(coll, settings.train_resolution)
-    if args.method != "projection":
-        from micromesh.core.construct.estimate import estimate
-        print(f"[{name}] estimate: {estimate(reference.n_faces, settings).text()}", flush=True)
-    progress = PhaseProgress(name)
-    interrupt.constructing = True
-    try:
-        outcome = pipeline.run(reference, base_tm, cams, settings, progress,
-                               interrupt.should_stop, level=args.level, method=args.method,
-                               preset_name=args.preset, input_warnings=notes)
-        progress.close(complete=True)
-    except pipeline.PipelineCancelled:
-        raise KeyboardInterrupt from None
-    finally:
-        interrupt.constructing = False
-        progress.close()
-    if interrupt.requested:
-        raise KeyboardInterrupt
-    m = outcome.metrics
-    if "base" in m:
-        b = m["base"]
-        print(f"[{name}] reference {reference.n_faces} triangles -> base {b['faces']} "
-              f"(error {b['error_mean']:.2e} of the diagonal, isotropy {b['isotropy']:.3f}, "
-              f"{b['time_s']:.1f} s)", flush=True)
-        for note in b["notes"]:
-            print(f"[{name}] note: {note}", flush=True)
-    for warning in m.get("warnings", []):
-        print(f"[{name}] warning: {warning}", flush=True)
-    obj = construct_scene.finish(bpy.context, source, None, outcome, base_uv)   # as the panel does
-    if args.maps:
-        m["maps"] = result_files.write_maps(bpy.context, outcome, source, args.maps, out,
-                                            progress, base_obj=obj.micromesh_base)
-        if m["maps"].get("atlas_note"):
-            print(f"[{name}] note: {m['maps']['atlas_note']}", flush=True)
-        progress.close(complete=True)
-    m["total_time_s"] = time.perf_counter() - t0
-    bpy.ops.wm.save_as_mainfile(filepath=str(out.temp(".blend")), compress=True)
-    if args.export != "none":
-        m["export"] = result_files.write_export(outcome, source, args.export, args.values,
-                                                args.layout, out)
-    result_files.write_report(outcome, out)
-    if args.ply:
-        from micromesh.core.io.mesh_files import write_ply
-
-        tess = outcome.micromesh.tessellate()
-        write_ply(out.temp("_micromesh.ply"), tess.vertices, tess.triangles)
-    out.temp(".metrics.json").write_text(json.dumps(
-        {"name": name, "object": obj.name, "method": outcome.method, "metrics": writeback._jsonable(m),
-         "settings": outcome.settings}, indent=1))
-    out.commit()
-    blend = out.final(".blend")
-    print(f"[{name}] {obj.name}: reference {m['reference_faces']} triangles, base "
-          f"{m['base_faces']} triangles, {m['micro_vertices']} micro-vertices, "
-          f"{m['micro_triangles']} micro-triangles, shell volume {m['shell_volume']:.5f} "
-          f"(unit sphere), {outcome.method}, {m['total_time_s']:.1f} s -> {blend}", flush=True)
-    return m
 
 
 def main(argv: list[str] | None = None) -> int:
