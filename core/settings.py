@@ -136,10 +136,12 @@ class ConstructSettings:
 
 
 PRESETS: dict[str, dict] = {
-    # Every preset but "paper" spends 2 micro-triangles per input face (budget_ratio), ends
-    # with the least-squares fit and trains on flat-shaded renders; docs/results.md has the
-    # measurements behind lr_disp 1e-4 and w_iso 0.1 (larger steps or isotropy weights over-fit
-    # the training views: the judge's PSNR and the geometric error get worse) and behind
+    # Every preset spends 2 micro-triangles per input face (budget_ratio; "paper" too, which
+    # the paper ran without a budget: at equal storage the rows compare); every one but
+    # "paper" ends with the least-squares fit and trains on flat-shaded renders;
+    # docs/results.md has the measurements behind lr_disp 1e-4 and w_iso 0.1 (larger steps
+    # or isotropy weights over-fit the training views: the judge's PSNR and the geometric
+    # error get worse) and behind
     # lod="uniform": every face goes up together and only the last, partial level is given
     # by image error within the budget; Algorithm 1's exchange spent the budget worse
     # (horse_97k −0.26 → +0.81 dB, fertility_60k +0.21 → +0.44 dB against micromesh-tools).
