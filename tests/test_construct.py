@@ -172,17 +172,22 @@ def test_base_moves_and_its_isotropy_rises(scene):
     assert r.metrics["iso_base"] > isotropy(base.vertices, base.faces) + 0.01
 
 
-def test_paper_losses_are_the_papers(scene):
+def test_paper_losses_are_the_papers(scene, monkeypatch):
     """``paper_losses`` (the paper preset): L_sv and L_iso in the unit frame as published,
     L_iso in the loss the optimiser steps; ours divides both by h² and moves the base down
     L_iso's tangent gradient in a step of its own."""
     import torch
 
+    from core.construct import step as step_module
     from core.construct.params import Parameters
     from core.construct.run import _initial_micromesh, _setup
     from core.construct.step import step
     from core.losses import isotropy_loss, shell_volume_loss
 
+    own_steps = []
+    tangent_step = step_module._isotropy_step
+    monkeypatch.setattr(step_module, "_isotropy_step",
+                        lambda *a: own_steps.append(paper) or tangent_step(*a))
     ref, base = scene
     for paper in (True, False):
         s = small(base_warm_up=False, paper_losses=paper, w_sv=10.0, w_iso=1.0, w_range=0.0)
@@ -201,7 +206,8 @@ def test_paper_losses_are_the_papers(scene):
         np.testing.assert_allclose(total, l_render + 10.0 * l_sv + l_iso, rtol=1e-5)
         moved = float((params.offsets.param.detach() - offsets).abs().max())
         assert moved > 0
-    assert run.h < 1.0    # so the paper's terms are the smaller, by h² (about 0.1 here)
+    assert own_steps == [False]      # the tangent step is ours only
+    assert run.h < 0.6               # the paper's terms are h² (about 0.3) times ours here
 
 
 def test_min_level_zero(scene):
