@@ -135,6 +135,37 @@ def test_the_compiled_systems_are_the_rows_system(bumpy, mixed):
         np.testing.assert_allclose(bj, bjr, rtol=0, atol=1e-12 * abs(bjr).max())
 
 
+def test_micro_vertices_no_sample_holds_are_kept_where_they_are(bumpy):
+    """A micro-vertex no sample holds (here the lower half of a sphere fitted to the upper
+    half of the reference) is kept, weakly, at its displacement; the held ones are not; the
+    base's round is left as it was."""
+    import scipy.sparse as sp
+
+    from core.fit.system import _KEEP
+
+    ref, baked = bumpy
+    top = ref.vertices[ref.faces].mean(1)[:, 2] > 0.2
+    cap = TriMesh(ref.vertices, ref.faces[top])
+    samples = fit_samples(baked, cap)
+    d = baked.displacements
+    M, b = normal_equations(baked, d, samples, 0.0, 0.1)
+    plain, b_plain = normal_equations(baked, d, samples, 0.0, 0.1, by_rows=True)  # no keeping
+    held = plain.diagonal() - 1e-9              # the samples' share (the system adds 1e-9 I)
+    firm = np.median(held[held > 0])
+    extra = (M - plain).diagonal()
+    kept = np.flatnonzero(extra > 0.5 * _KEEP * firm)
+    z = baked.micro_vertex_positions()[:, 2]
+    assert (z[kept] < 0.3).all() and np.isin(np.flatnonzero(z < -0.2), kept).all()
+    np.testing.assert_allclose(extra[kept], _KEEP * firm, rtol=1e-9)
+    np.testing.assert_allclose((b - b_plain)[kept], _KEEP * firm * d[kept], rtol=1e-6)
+    rest = M - plain - sp.diags(np.where(extra > 0.5 * _KEEP * firm, extra, 0.0))
+    assert abs(rest).max() < 1e-9 * abs(M).max()
+    joint, _ = normal_equations(baked, d, samples, 0.0, 0.1, base_stiffness=1e-3)
+    joint_rows, _ = normal_equations(baked, d, samples, 0.0, 0.1, base_stiffness=1e-3,
+                                     by_rows=True)
+    assert abs(joint - joint_rows).max() < 1e-9 * abs(joint).max()
+
+
 def test_samples_made_a_run_of_faces_at_a_time_sum_the_same_system(bumpy):
     """The samples are made in chunks (whole faces of one level), in one order whatever the
     chunk size; the fit's sums over them, chunk by chunk, are the same bits as in one go."""

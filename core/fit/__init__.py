@@ -17,8 +17,10 @@ minimised in the least-squares sense together with ``slopes`` times the same wei
 which asks that triangle to lie in the sample's tangent plane, so that its normal, which flat
 shading shows, is the reference's (distance alone lets a triangle tilt while its points stay
 close), and ``smoothness`` · |L (|D| d)|² (the micro Laplacian of the displacement as a length,
-which keeps vertices without samples in place and damps noise; as a length, it weighs the same
-under directions scaled by folded bounds). The matches are
+which damps noise; as a length, it weighs the same under directions scaled by folded bounds).
+In the rounds over the displacements alone, a micro-vertex that no sample holds (a patch off
+the reference gets none) is kept, weakly, at the displacement the round started from: the
+smoothness alone let such patches drift into spikes that set the shell. The matches are
 renewed ``iterations`` times (an ICP on the displacements). With ``base_stiffness`` the base
 vertices are unknowns too (``fit_micromesh``): P_k is then their interpolation, and a base vertex
 may slide where one displacement per micro-vertex cannot reach (a crease between two of its
