@@ -1,5 +1,6 @@
 """The normal equations of one fit round: samples matched to the micro-surface, the
-point-to-plane and slope rows, the smoothness term, and the base vertices as unknowns too.
+point-to-plane and slope rows, the micro-vertices no sample holds kept where they are, the
+smoothness term, and the base vertices as unknowns too.
 
 Every row is a residual n · (Σ_k c_k X_k) − t along one sample's normal n, over micro-vertex
 positions X_k = Σ_j W_kj V_j + D_k d_k (``W``: the topology's interpolation of the base
@@ -82,7 +83,7 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples: Samples, smoothness:
 # this fraction of the median vertex's: no sample matched any micro-triangle around it.
 _UNHELD = 1e-3
 # How firmly an unheld micro-vertex is kept at its displacement, as a fraction of the median
-# vertex's hold by its samples (counter_cad_84k: 0.03 and 1 thinned its shell alike).
+# vertex's hold by its samples (docs/results.md, thirteenth session).
 _KEEP = 0.03
 
 
@@ -91,9 +92,8 @@ def _unheld_kept(M: sp.csr_matrix, b: np.ndarray, D: np.ndarray, d: np.ndarray
     """The displacements' system with each micro-vertex that no sample holds kept, weakly, at
     its displacement ``d``. The fit matches each reference sample to its closest micro-triangle,
     so a patch of micro-surface off the reference gets no samples; the smoothness alone let it
-    drift into spikes that set the shell (counter_cad_84k's bolt holes: micro-vertices 0.037 of
-    the unit radius off, 30 base faces holding half its shell; ``docs/results.md``). Not in the
-    base's round: there it cost the ogre 0.1 dB."""
+    drift into spikes that set the shell (a CAD part's bolt holes). The base's round does
+    without it (it cost there more than it gave)."""
     diag = M.diagonal()
     held = diag[diag > 0]
     if not len(held):
