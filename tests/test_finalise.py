@@ -1,4 +1,4 @@
-"""The end of a construction (``core.construct.finalise`` and ``choose_levels``) on stand-in
+"""The end of a construction (``core.construct.fitting`` and ``choose_levels``) on stand-in
 runs: the residual exchange of levels, kept only where it lowers the shading error, and the
 base round, kept only where it helps."""
 import numpy as np
@@ -36,13 +36,13 @@ def test_residual_exchange_moves_levels_to_where_the_fit_misses():
 
 @pytest.mark.parametrize("hot_cap", [False, True])
 def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, monkeypatch):
-    """finalise.fitted: the levels residual_exchange moves are fitted again and kept only when
+    """fitting.fitted: the levels residual_exchange moves are fitted again and kept only when
     the shading error of the same reference samples falls; otherwise the first fit stays.
     Detail on one cap of a sphere: moving levels there helps (kept). Moving levels onto a
     smooth cap while the detailed one loses them hurts (refused)."""
     from types import SimpleNamespace
 
-    import core.construct.finalise as fin
+    import core.construct.fitting as fin
     from core.fit import fit_samples, surface_errors
     from core.lod import effective_micro_triangles
     from core.metrics import PhaseTimer
@@ -82,12 +82,12 @@ def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, 
 
 @pytest.mark.parametrize("growth", [1.1, 0.0])
 def test_the_base_moves_only_where_it_helps(growth, monkeypatch):
-    """finalise.fitted's last round moves the base vertices; it is kept where the shading
+    """fitting.fitted's last round moves the base vertices; it is kept where the shading
     error falls and the shell widens by a tenth at most (here: a bumpy sphere, kept), else
     the displacements-only fit stays (forced by allowing no shell at all)."""
     from types import SimpleNamespace
 
-    import core.construct.finalise as fin
+    import core.construct.fitting as fin
     from core.metrics import PhaseTimer
     from core.micromesh import MicroMesh
 

@@ -66,7 +66,7 @@ def test_report_of_a_baseline_has_no_curves_and_says_its_warnings(scene):  # noq
 
 
 def test_the_residual_lod_decision_is_reported(optimised):
-    """finalise.fitted's decision on the levels moved after the fit reaches the JSON and the
+    """fitting.fitted's decision on the levels moved after the fit reaches the JSON and the
     table (here: a decision made up for the test, kept and refused)."""
     ref, res = optimised
     for kept in (True, False):

@@ -15,9 +15,10 @@ from ..bounds import baked, lp_bounds, micromesh_shell_volume, tight_bounds, uni
 from ..mesh import TriMesh
 from ..micromesh import MicroMesh
 from ..microtopology import balance_levels
-from ..fit import fit_micromesh, fit_samples, surface_errors
-from .choose_levels import final_levels, residual_exchange
+from ..fit import surface_errors
+from .choose_levels import final_levels
 from .evaluate import evaluate
+from .fitting import fit_rounds, fitted
 from .frame import to_caller_frame
 from .scene import face_errors
 from .state import RunState
@@ -80,7 +81,7 @@ def folded(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
     with run.timer.phase("bounds"):
         least = baked(mm, lp_bounds(mm))
     with run.timer.phase("fit"):
-        least = _fit(run, least, samples, rounds=1)
+        least = fit_rounds(run, least, samples, rounds=1)
     with run.timer.phase("bounds"):
         least = baked(least, tight_bounds(least))
         before, after = (surface_errors(m, samples)[1].sum() for m in (tight, least))
@@ -95,82 +96,3 @@ def folded(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
                               "image_error_after": float(images[1]),
                               "shell_before": float(shells[0]), "shell_after": float(shells[1])}
     return least if keep else tight
-
-
-def fitted(run: RunState, mm: MicroMesh) -> tuple[MicroMesh, tuple]:
-    """``mm`` with its displacements fitted to the reference (``core.fit``); then, with a
-    budget, levels moved to where the fit still misses it and fitted again. The moved levels
-    are kept only where they lower the shading error (squared normal differences) of the same
-    reference samples: where the residual model misjudges a mesh (smooth ones, whose residual
-    falls faster than it assumes), the first fit stays. ``run.notes["residual_lod"]`` says
-    what happened. Last, the base vertices are fitted with the displacements
-    (``fit_base_stiffness``; not where the base is frozen). Returns the micro-mesh and the
-    reference samples it was fitted to."""
-    ref = run.scene.ref
-    with run.timer.phase("fit"):
-        samples = fit_samples(mm, ref)
-        mm = _fit(run, mm, samples)
-    error = None                # the shading error of (mm, samples), where already known
-    if run.s.residual_lod > 0 and run.fixed is None and run.cost is not None:
-        run.check_stop()
-        run.announce("residual_lod")
-        mm, samples, error = _exchanged(run, mm, samples)
-    if run.s.fit_base_stiffness > 0 and run.fixed is None:
-        run.check_stop()
-        run.announce("base_fit")
-        mm = _base_moved(run, mm, samples, error)
-    return mm, samples
-
-
-# The base may move where the shell grows by at most this factor.
-_SHELL_GROWTH = 1.1
-
-
-def _base_moved(run: RunState, mm: MicroMesh, samples, before: float | None = None
-                ) -> MicroMesh:
-    """One fit round with the base vertices as unknowns, kept where it lowers the shading
-    error (``before``: mm's, where the caller knows it) without widening the shell by more
-    than a tenth (on parts thinner than the samples' spacing a base vertex can be pulled
-    across to the far side); ``run.notes["base_fit"]`` says what happened."""
-    with run.timer.phase("fit"):
-        moved = _fit(run, mm, samples, run.s.fit_base_stiffness, rounds=1)
-        if before is None:
-            before = surface_errors(mm, samples)[1].sum()
-        after = surface_errors(moved, samples)[1].sum()
-        shells = [micromesh_shell_volume(m, tight_bounds(m)) for m in (mm, moved)]
-    keep = bool(after < before and shells[1] <= _SHELL_GROWTH * shells[0])
-    run.notes["base_fit"] = {"kept": keep, "shading_error_before": float(before),
-                             "shading_error_after": float(after),
-                             "shell_before": float(shells[0]), "shell_after": float(shells[1])}
-    return moved if keep else mm
-
-
-def _exchanged(run: RunState, mm: MicroMesh, samples) -> tuple[MicroMesh, tuple, float | None]:
-    """The residual exchange of levels, fitted, kept where it lowers the shading error; the
-    micro-mesh kept, the samples that fit it and, where it is the first, its shading error on
-    them."""
-    with run.timer.phase("residual_lod"):
-        dist, normal = surface_errors(mm, samples)
-        new = residual_exchange(run, mm.levels, dist)
-    if np.array_equal(new, mm.levels):
-        return mm, samples, float(normal.sum())
-    with run.timer.phase("fit"):
-        moved = mm.with_levels(new)
-        moved_samples = fit_samples(moved, run.scene.ref)
-        moved = _fit(run, moved, moved_samples)
-    with run.timer.phase("residual_lod"):
-        after = surface_errors(moved, samples)[1].sum()
-    keep = bool(after < normal.sum())
-    run.notes["residual_lod"] = {"faces_up": int((new > mm.levels).sum()),
-                                 "faces_down": int((new < mm.levels).sum()), "kept": keep,
-                                 "shading_error_before": float(normal.sum()),
-                                 "shading_error_after": float(after)}
-    return (moved, moved_samples, None) if keep else (mm, samples, float(normal.sum()))
-
-
-def _fit(run: RunState, mm: MicroMesh, samples, base_stiffness: float = 0.0,
-         rounds: int = 2) -> MicroMesh:
-    """The least-squares fit with the run's settings (the base vertices held with
-    ``base_stiffness``, fixed at 0); one round suffices from an already fitted ``mm``."""
-    return fit_micromesh(mm, run.scene.ref, run.s.fit_smoothness, rounds, samples=samples,
-                         slopes=run.s.fit_slopes, base_stiffness=base_stiffness)
