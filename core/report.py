@@ -100,7 +100,7 @@ def report_data(metrics: dict, history: dict, levels: np.ndarray, settings_chang
     m = {k: metrics.get(k) for k, _, _ in ROWS if k in metrics}
     if metrics.get("bytes"):
         m["compression"] = input_bytes / metrics["bytes"]
-    for key in ("residual_lod", "base_fit", "lp_bounds"):  # finalise's decisions
+    for key in ("residual_lod", "base_fit", "direction_fit", "lp_bounds"):  # the end's decisions
         if isinstance(metrics.get(key), dict):
             m[key] = dict(metrics[key])
     return {"metrics": m, "levels_hist": np.bincount(levels, minlength=6).tolist(),
@@ -188,12 +188,11 @@ def _table(ax, data: dict) -> None:
     if r:
         rows.append(["levels moved after the fit", "kept" if r["kept"] else "refused"])
         rows.append(["faces moved up / down", f"{r['faces_up']} / {r['faces_down']}"])
-    r = data["metrics"].get("base_fit")
-    if r:
-        rows.append(["base moved by the fit", "kept" if r["kept"] else "refused"])
-    r = data["metrics"].get("lp_bounds")
-    if r:
-        rows.append(["least-volume bounds", "kept" if r["kept"] else "refused"])
+    for key, label in (("base_fit", "base moved by the fit"),
+                       ("direction_fit", "directions turned by the fit"),
+                       ("lp_bounds", "least-volume bounds")):
+        if data["metrics"].get(key):
+            rows.append([label, "kept" if data["metrics"][key]["kept"] else "refused"])
     rows += [[f"time: {k}", f"{v:.1f} s"] for k, v in sorted(data["timings"].items())
              if v >= 0.5]
     rows += [["device", data.get("device", "")], ["threads", str(data.get("threads", ""))]]

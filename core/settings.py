@@ -74,6 +74,8 @@ class ConstructSettings:
     fit_smoothness: float = 1e-3     # weight of |L (|D| d)|² in the fit
     fit_slopes: float = 0.1          # weight of the micro-triangles' tilt against the samples'
     fit_base_stiffness: float = 1e-3  # how firmly the fit holds the base vertices (0: fixed)
+    fit_directions: bool = True      # then turn the base directions too, where that helps
+                                     # (core.fit.directions; ours)
     residual_lod: float = 0.15       # after the fit, this fraction of faces may go up a level
                                      # where it still misses the reference, others down, same
                                      # budget, then fit again (0: off; ours)

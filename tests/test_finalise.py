@@ -67,7 +67,7 @@ def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, 
         up, down = z < -0.5, z > 0.5
     wanted = np.where(up, 3, np.where(down, 1, levels))
     monkeypatch.setattr(fin, "residual_exchange", lambda run, lv, E: wanted)
-    out, _ = fin.fitted(run, mm)
+    out, *_ = fin.fitted(run, mm)
     note = run.notes["residual_lod"]
     assert note["kept"] is hot_cap
     assert (note["shading_error_after"] < note["shading_error_before"]) is hot_cap
@@ -81,10 +81,11 @@ def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, 
 
 
 @pytest.mark.parametrize("growth", [1.1, 0.0])
-def test_the_base_moves_only_where_it_helps(growth, monkeypatch):
-    """fitting.fitted's last round moves the base vertices; it is kept where the shading
-    error falls and the shell widens by a tenth at most (here: a bumpy sphere, kept), else
-    the displacements-only fit stays (forced by allowing no shell at all)."""
+def test_the_base_and_the_directions_move_only_where_it_helps(growth, monkeypatch):
+    """fitting.fitted's last rounds move the base vertices, then turn the directions; each is
+    kept where the shading error falls and the shell widens by a tenth at most (here: a bumpy
+    sphere, kept), else the displacements-only fit stays (forced by allowing no shell at
+    all); without ``fit_directions`` the directions are not touched."""
     from types import SimpleNamespace
 
     import core.construct.fitting as fin
@@ -101,9 +102,17 @@ def test_the_base_moves_only_where_it_helps(growth, monkeypatch):
                           notes={}, check_stop=lambda: None,
                           announce=lambda phase: None)
     monkeypatch.setattr(fin, "_SHELL_GROWTH", growth)
-    out, _ = fin.fitted(run, mm)
+    out, *_ = fin.fitted(run, mm)
     note = run.notes["base_fit"]
     assert note["kept"] is (growth > 0)
     assert note["shading_error_after"] < note["shading_error_before"]
     moved = np.abs(out.base.vertices - base.vertices).max()
     assert bool(moved > 0) is (growth > 0)
+    turn = run.notes["direction_fit"]
+    assert turn["kept"] is (growth > 0)
+    assert turn["shading_error_after"] < turn["shading_error_before"]
+    assert bool(np.abs(out.directions - mm.directions).max() > 0) is (growth > 0)
+    run.s, run.notes = preset("default", residual_lod=0.0, fit_directions=False), {}
+    out, *_ = fin.fitted(run, mm)
+    assert "direction_fit" not in run.notes
+    np.testing.assert_array_equal(out.directions, mm.directions)

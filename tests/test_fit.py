@@ -166,6 +166,77 @@ def test_micro_vertices_no_sample_holds_are_kept_where_they_are(bumpy):
     assert abs(joint - joint_rows).max() < 1e-9 * abs(joint).max()
 
 
+def _tilted(mm: MicroMesh, degrees: float, seed: int = 0) -> MicroMesh:
+    """``mm`` with each base direction turned by ``degrees`` about a random tangent axis."""
+    rng = np.random.default_rng(seed)
+    D = mm.directions / np.linalg.norm(mm.directions, axis=1, keepdims=True)
+    t = np.cross(D, rng.standard_normal(D.shape))
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    a = np.radians(degrees)
+    return mm.with_directions(np.cos(a) * D + np.sin(a) * t)
+
+
+def test_turning_the_directions_reaches_what_one_displacement_cannot(bumpy):
+    """Directions tilted off the surface's normals, displacements fitted under them: the
+    direction round lowers the distance and the shading error and turns the directions back
+    towards the normals; a tiny damping turns them further, a huge one not at all (then it is
+    a displacements' round)."""
+    from core.fit import fit_directions
+
+    ref, baked = bumpy
+    samples = fit_samples(baked, ref)
+    tilted = _tilted(baked, 25.0)
+    tilted = tilted.with_displacements(fit_displacements(tilted, ref, samples=samples))
+    normals = baked.directions / np.linalg.norm(baked.directions, axis=1, keepdims=True)
+
+    def off(mm):            # mean angle of the directions from the normals, degrees
+        D = mm.directions / np.linalg.norm(mm.directions, axis=1, keepdims=True)
+        return float(np.degrees(np.arccos(np.clip((D * normals).sum(1), -1, 1))).mean())
+
+    turned = fit_directions(tilted, samples)
+    e0, e1 = surface_errors(tilted, samples), surface_errors(turned, samples)
+    assert e1[0].sum() < 0.97 * e0[0].sum(), (e0[0].sum(), e1[0].sum())
+    assert e1[1].sum() < 0.99 * e0[1].sum(), (e0[1].sum(), e1[1].sum())
+    assert off(turned) < off(tilted) - 1.0, (off(tilted), off(turned))
+    assert off(fit_directions(tilted, samples, damping=0.05)) < off(turned)
+    held = fit_directions(tilted, samples, damping=1e9)
+    np.testing.assert_allclose(held.directions, tilted.directions, atol=1e-6)
+
+
+def test_a_direction_that_would_widen_the_shell_is_put_back(bumpy, monkeypatch):
+    """Where a turned direction's micro-vertices span more length along it than before
+    (times ``WIDENING``), the direction is put back: with no widening allowed, every one."""
+    import core.fit.directions as dirs
+
+    ref, baked = bumpy
+    samples = fit_samples(baked, ref)
+    tilted = _tilted(baked, 25.0)
+    tilted = tilted.with_displacements(fit_displacements(tilted, ref, samples=samples))
+    turned = dirs.fit_directions(tilted, samples)
+    assert (np.abs(turned.directions - tilted.directions).max(1) > 0).mean() > 0.5
+    monkeypatch.setattr(dirs, "WIDENING", 0.0)
+    kept = dirs.fit_directions(tilted, samples)
+    np.testing.assert_array_equal(kept.directions, tilted.directions)
+
+
+def test_turning_the_directions_holds_what_no_sample_holds(bumpy):
+    """The lower half of a sphere fitted to the upper half of the reference: no sample holds
+    its micro-vertices, and turning the directions leaves them where they were (without the
+    hold they swing)."""
+    from core.fit import fit_directions
+
+    ref, baked = bumpy
+    top = ref.vertices[ref.faces].mean(1)[:, 2] > 0.2
+    samples = fit_samples(baked, TriMesh(ref.vertices, ref.faces[top]))
+    tilted = _tilted(baked, 25.0)
+    low = np.flatnonzero(tilted.micro_vertex_positions()[:, 2] < -0.4)
+    X0 = tilted.micro_vertex_positions()[low]
+    moved = [np.abs(fit_directions(tilted, samples, hold=h).micro_vertex_positions()[low]
+                    - X0).max() for h in (0.03, 0.0)]
+    edge = np.sqrt(baked.base.face_areas.mean())
+    assert moved[0] < 0.01 * edge and moved[1] > 0.1 * edge, moved
+
+
 def test_samples_made_a_run_of_faces_at_a_time_sum_the_same_system(bumpy):
     """The samples are made in chunks (whole faces of one level), in one order whatever the
     chunk size; the fit's sums over them, chunk by chunk, are the same bits as in one go."""

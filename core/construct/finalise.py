@@ -31,16 +31,16 @@ def finalise(run: RunState, mm: MicroMesh, reference: TriMesh, base: TriMesh,
     mm = final_levels(run, mm)
     with run.timer.phase("finalize"):
         mm = mm.with_levels(balance_levels(run.base, mm.levels))
-    samples = None
+    samples, error = None, None
     if run.s.final_fit:
         run.check_stop()
         run.announce("fit")
-        mm, samples = fitted(run, mm)
+        mm, samples, error = fitted(run, mm)
     bounds = None
     if run.s.fold_bounds and run.fixed is None:  # what a file holds (not: a frozen base)
         run.check_stop()
         run.announce("bounds")
-        mm, bounds = folded(run, mm, samples), unit_bounds(mm.base.n_vertices)
+        mm, bounds = folded(run, mm, samples, error), unit_bounds(mm.base.n_vertices)
     with run.timer.phase("finalize"):
         bounds = tight_bounds(mm) if bounds is None else bounds
     run.check_stop()
@@ -65,7 +65,7 @@ def finalise(run: RunState, mm: MicroMesh, reference: TriMesh, base: TriMesh,
 _IMAGE_TOLERANCE = 1.01
 
 
-def folded(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
+def folded(run: RunState, mm: MicroMesh, samples, error: float | None = None) -> MicroMesh:
     """``mm`` with bounds folded into its base and directions (``core.bounds.baked``): its
     tight bounds, or, after a fit (``samples``) and with ``lp_bounds``, the least-volume
     bounds (``core.bounds.lp_bounds``) with the displacements fitted again under them (baking
@@ -73,7 +73,8 @@ def folded(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
     bounds of the result, which are nearly unit and bake almost exactly. That second way is
     kept where its image error (the LOD views' L1, ``scene.face_errors``) is at most 1 %
     larger (``_IMAGE_TOLERANCE``); the samples' shading error, recorded beside it, misjudged
-    it both ways (counter_cad, beast); ``run.notes["lp_bounds"]`` says what happened."""
+    it both ways (counter_cad, beast); ``run.notes["lp_bounds"]`` says what happened.
+    ``error``: mm's shading error on ``samples``, where the caller knows it."""
     with run.timer.phase("finalize"):
         tight = baked(mm, tight_bounds(mm))
     if not run.s.lp_bounds or samples is None:
@@ -84,7 +85,9 @@ def folded(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
         least = fit_rounds(run, least, samples, rounds=1)
     with run.timer.phase("bounds"):
         least = baked(least, tight_bounds(least))
-        before, after = (surface_errors(m, samples)[1].sum() for m in (tight, least))
+        # tight holds mm's micro-surface (to rounding): mm's shading error where known
+        before = surface_errors(tight, samples)[1].sum() if error is None else error
+        after = surface_errors(least, samples)[1].sum()
         shells = [micromesh_shell_volume(m, unit_bounds(m.base.n_vertices))
                   for m in (tight, least)]
         images = [face_errors(m, run.scene, run.lod_cams, "lod", run.s, run.ref_tree).sum()

@@ -24,17 +24,20 @@ smoothness alone let such patches drift into spikes that set the shell. The matc
 renewed ``iterations`` times (an ICP on the displacements). With ``base_stiffness`` the base
 vertices are unknowns too (``fit_micromesh``): P_k is then their interpolation, and a base vertex
 may slide where one displacement per micro-vertex cannot reach (a crease between two of its
-faces), held in place by ``base_stiffness``. The sparse normal equations are
+faces), held in place by ``base_stiffness``; with ``fit_directions`` (``directions.py``) the
+base directions turn instead, so that micro-vertices reach what their own direction misses.
+The sparse normal equations are
 solved by preconditioned conjugate gradients (:func:`solve_normal_equations`). Lengths are
 those of the inputs (the construction calls it in the unit-sphere frame).
 """
 from __future__ import annotations
 
+from .directions import fit_directions
 from .lsq import fit_displacements, fit_micromesh
 from .residuals import surface_errors
 from .samples import FitError, Samples, fit_samples, reference_samples
 from .solve import solve_normal_equations
 from .system import normal_equations
 
-__all__ = ["FitError", "Samples", "fit_displacements", "fit_micromesh", "fit_samples",
+__all__ = ["FitError", "Samples", "fit_directions", "fit_displacements", "fit_micromesh", "fit_samples",
            "normal_equations", "reference_samples", "solve_normal_equations", "surface_errors"]

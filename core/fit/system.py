@@ -50,7 +50,7 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples: Samples, smoothness:
     offsets = np.zeros((nb, 3)) if offsets is None else offsets
     P, D = W @ (mm.base.vertices + offsets), mm.micro_vertex_directions()
     T = mm.topology.triangles                  # the non-degenerate micro-triangles
-    matches = _matches(P + D * d[:, None], T, samples, chunk)
+    matches = sample_matches(P + D * d[:, None], T, samples, chunk)
     joint = base_stiffness > 0
     if by_rows:
         M, b = _row_system(matches, P, D, W if joint else None, n + 3 * nb if joint else n,
@@ -59,24 +59,16 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples: Samples, smoothness:
         M, b = joint_system(matches, T, P, D, W, mm.topology, mm.base.faces, slopes)
     else:
         M, b = _unheld_kept(*_displacement_system(matches, T, P, D, slopes), D, d)
-    # Smoothness of the displacement as a length (|D_k| d_k): the same weight whether the
-    # directions are unit or scaled by folded bounds (``core.bounds.baked``).
-    LS = (uniform_laplacian(n, T) @ sp.diags(np.linalg.norm(D, axis=1))).tocsr()
-    R = (smoothness * (LS.T.tocsr() @ LS) + 1e-9 * sp.eye(n, format="csr")).tocsr()
-    del LS
     b[:n] += 1e-9 * d
+    R = regularisation(T, D, smoothness, M.shape[0])
     if not joint:
-        return _sorted(M + R), b
-    # The base's rows of the regularisation: none but the stiffness on the diagonal (added in
-    # CSR: a block_diag goes through triplets, as large as M at a million unknowns).
+        return sorted_csr(M + R), b
     size = M.shape[0]
-    R = sp.csr_matrix((R.data, R.indices, np.concatenate(
-        [R.indptr, np.full(size - n, R.indptr[-1])])), shape=(size, size))
     k = base_stiffness * samples.weights.sum() * (1 + (3 * slopes if slopes > 0 else 0)) / nb
     stiff = np.zeros(size)
     stiff[n:] = k
     b[n:] -= k * offsets.T.reshape(-1)                # holds the offsets, not the increments
-    return _sorted(M + R + sp.diags(stiff, format="csr")), b
+    return sorted_csr(M + R + sp.diags(stiff, format="csr")), b
 
 
 # A micro-vertex is unheld where its samples' share of the normal equations' diagonal is below
@@ -87,6 +79,31 @@ _UNHELD = 1e-3
 _KEEP = 0.03
 
 
+def regularisation(T: np.ndarray, D: np.ndarray, smoothness: float, size: int
+                   ) -> sp.csr_matrix:
+    """The smoothness of the displacement as a length (|D_k| d_k: the same weight whether
+    the directions are unit or scaled by folded bounds, ``core.bounds.baked``) and 1e-9 I,
+    over the first n = len(D) unknowns of a ``size``-unknown system (padded in CSR: a
+    block_diag goes through triplets, as large as the system at a million unknowns)."""
+    n = len(D)
+    LS = (uniform_laplacian(n, T) @ sp.diags(np.linalg.norm(D, axis=1))).tocsr()
+    R = (smoothness * (LS.T.tocsr() @ LS) + 1e-9 * sp.eye(n, format="csr")).tocsr()
+    return sp.csr_matrix((R.data, R.indices, np.concatenate(
+        [R.indptr, np.full(size - n, R.indptr[-1])])), shape=(size, size))
+
+
+def unheld_vertices(diag: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, float]:
+    """(the micro-vertices no sample holds, the median vertex's hold): from the diagonal of
+    the displacements' system (``diag`` (n,) at least), those whose samples' share is below
+    ``_UNHELD`` of the median's, among those with a direction."""
+    diag = diag[:len(D)]
+    held = diag[diag > 0]
+    if not len(held):
+        return np.zeros(0, np.int64), 0.0
+    firm = float(np.median(held))
+    return np.flatnonzero((diag < _UNHELD * firm) & ((D * D).sum(1) > 0)), firm
+
+
 def _unheld_kept(M: sp.csr_matrix, b: np.ndarray, D: np.ndarray, d: np.ndarray
                  ) -> tuple[sp.csr_matrix, np.ndarray]:
     """The displacements' system with each micro-vertex that no sample holds kept, weakly, at
@@ -94,12 +111,7 @@ def _unheld_kept(M: sp.csr_matrix, b: np.ndarray, D: np.ndarray, d: np.ndarray
     so a patch of micro-surface off the reference gets no samples; the smoothness alone let it
     drift into spikes that set the shell (a CAD part's bolt holes). The base's round does
     without it (it cost there more than it gave)."""
-    diag = M.diagonal()
-    held = diag[diag > 0]
-    if not len(held):
-        return M, b
-    firm = float(np.median(held))
-    unheld = np.flatnonzero((diag < _UNHELD * firm) & ((D * D).sum(1) > 0))
+    unheld, firm = unheld_vertices(M.diagonal(), D)
     if not len(unheld):
         return M, b
     extra = np.zeros(len(d))
@@ -109,7 +121,7 @@ def _unheld_kept(M: sp.csr_matrix, b: np.ndarray, D: np.ndarray, d: np.ndarray
     return M + sp.diags(extra, format="csr"), b
 
 
-def _sorted(M) -> sp.csr_matrix:
+def sorted_csr(M) -> sp.csr_matrix:
     """``M`` as CSR with each row's columns in order (the solver's products then sum in one
     order whichever way the system was added up)."""
     M = M.tocsr()
@@ -117,7 +129,7 @@ def _sorted(M) -> sp.csr_matrix:
     return M
 
 
-def _matches(X: np.ndarray, T: np.ndarray, samples: Samples, chunk: int):
+def sample_matches(X: np.ndarray, T: np.ndarray, samples: Samples, chunk: int):
     """Per about ``chunk`` samples in order: (points (c, 3), normals (c, 3), weights (c,),
     matched micro-triangles (c,), their corners (c, 3), the closest points' barycentrics
     (c, 3)) on the micro-surface of micro-vertices ``X`` and triangles ``T``."""
