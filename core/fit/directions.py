@@ -9,10 +9,10 @@ micro-vertex k by d⁰_k W_kj ΔDir_j. That is the base round's system (``joint_
 offset moves it by W_kj Δ_j) with W scaled row by row by d⁰, so the same compiled sums serve:
 one Gauss-Newton step over the displacements and the direction increments together.
 
-Four safeguards:
+Safeguards:
 - Marquardt damping: each direction is held by ``damping`` times its own curvature (the trace
-  of its 3 x 3 block), so the step is scale-free: a base vertex whose
-  micro-vertices hardly leave the base barely turns its direction, however the samples pull.
+  of its 3 x 3 block), so the step is scale-free: a base vertex whose micro-vertices hardly
+  leave the base barely turns its direction, however the samples pull.
 - A micro-vertex that no sample holds (``system.unheld_vertices``) is held where it is, as a
   position (``hold`` of the median vertex's hold): turning a direction would otherwise swing
   it out with nothing to bring it back (an ogre's toe grew a spike).
