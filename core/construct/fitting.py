@@ -8,13 +8,13 @@ from __future__ import annotations
 import numpy as np
 
 from ..bounds import micromesh_shell_volume, tight_bounds
-from ..fit import fit_directions, fit_micromesh, fit_samples, surface_errors
+from ..fit import Samples, fit_directions, fit_micromesh, fit_samples, surface_errors
 from ..micromesh import MicroMesh
 from .choose_levels import residual_exchange
 from .state import RunState
 
 
-def fitted(run: RunState, mm: MicroMesh) -> tuple[MicroMesh, object, float | None]:
+def fitted(run: RunState, mm: MicroMesh) -> tuple[MicroMesh, Samples, float | None]:
     """``mm`` with its displacements fitted to the reference (``core.fit``); then, with a
     budget, levels moved to where the fit still misses it and fitted again. The moved levels
     are kept only where they lower the shading error (squared normal differences) of the same
@@ -115,7 +115,7 @@ def _exchanged(run: RunState, mm: MicroMesh, samples) -> tuple[MicroMesh, tuple,
 
 
 def fit_rounds(run: RunState, mm: MicroMesh, samples, base_stiffness: float = 0.0,
-         rounds: int = 2) -> MicroMesh:
+               rounds: int = 2) -> MicroMesh:
     """The least-squares fit with the run's settings (the base vertices held with
     ``base_stiffness``, fixed at 0); one round suffices from an already fitted ``mm``."""
     return fit_micromesh(mm, run.scene.ref, run.s.fit_smoothness, rounds, samples=samples,

@@ -39,5 +39,6 @@ from .samples import FitError, Samples, fit_samples, reference_samples
 from .solve import solve_normal_equations
 from .system import normal_equations
 
-__all__ = ["FitError", "Samples", "fit_directions", "fit_displacements", "fit_micromesh", "fit_samples",
-           "normal_equations", "reference_samples", "solve_normal_equations", "surface_errors"]
+__all__ = ["FitError", "Samples", "fit_directions", "fit_displacements", "fit_micromesh",
+           "fit_samples", "normal_equations", "reference_samples", "solve_normal_equations",
+           "surface_errors"]

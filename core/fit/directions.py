@@ -65,12 +65,12 @@ def fit_directions(mm: MicroMesh, samples: Samples, smoothness: float = 1e-3,
     x = solve_normal_equations(M, b, np.concatenate([d, np.zeros(3 * nb)]), maxiter=STEPS,
                                blocks=nb, exact=False)
     turned = mm.directions + x[n:].reshape(3, nb).T
-    out = MicroMesh(mm.base, turned, mm.levels, x[:n], mm.topology)
     reach = _reach(mm)
-    back = ((turned * mm.directions).sum(1) <= 0) | \
-        (_reach(out) > WIDENING * reach + 1e-12 * reach.max(initial=0.0))
-    turned[back] = mm.directions[back]
-    return MicroMesh(mm.base, turned, mm.levels, x[:n], mm.topology)
+    widened = _reach(MicroMesh(mm.base, turned, mm.levels, x[:n], mm.topology)) > \
+        WIDENING * reach + 1e-12 * reach.max(initial=0.0)
+    back = widened | ((turned * mm.directions).sum(1) <= 0)
+    return MicroMesh(mm.base, np.where(back[:, None], mm.directions, turned), mm.levels, x[:n],
+                     mm.topology)
 
 
 def _reach(mm: MicroMesh) -> np.ndarray:
