@@ -89,3 +89,27 @@ def build_bvh(tri_lo, tri_hi, cent, leaf_size):  # pragma: no cover - compiled
         top += 2
     return (node_lo[:n_nodes].copy(), node_hi[:n_nodes].copy(), child[:n_nodes].copy(),
             start[:n_nodes].copy(), count[:n_nodes].copy(), order)
+
+
+@kernel(cache=True)
+def refit_bvh(A, B, C, child, start, count):  # pragma: no cover - compiled
+    """Node boxes (node_lo, node_hi) of a tree built by :func:`build_bvh` over triangles whose
+    corners moved: ``A``, ``B``, ``C`` (m, 3) the corners in the tree's leaf order. Children
+    come after their parent, so one pass from the last node up suffices."""
+    n = child.shape[0]
+    node_lo = np.empty((n, 3))
+    node_hi = np.empty((n, 3))
+    for nd in range(n - 1, -1, -1):
+        if count[nd] > 0:
+            for a in range(3):
+                lo, hi = np.inf, -np.inf
+                for k in range(start[nd], start[nd] + count[nd]):
+                    lo = min(lo, A[k, a], B[k, a], C[k, a])
+                    hi = max(hi, A[k, a], B[k, a], C[k, a])
+                node_lo[nd, a], node_hi[nd, a] = lo, hi
+        else:
+            c = child[nd]
+            for a in range(3):
+                node_lo[nd, a] = min(node_lo[c, a], node_lo[c + 1, a])
+                node_hi[nd, a] = max(node_hi[c, a], node_hi[c + 1, a])
+    return node_lo, node_hi

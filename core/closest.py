@@ -19,7 +19,7 @@ import numba
 import numpy as np
 from numba import prange
 
-from .bvh import build_bvh
+from .bvh import build_bvh, refit_bvh
 from .checks import as_points, per_point_distance
 from .runtime.jit import kernel
 from .mesh import TriMesh
@@ -143,17 +143,48 @@ class ClosestPointIndex:
         lo, hi, child, start, count, order = build_bvh(
             np.ascontiguousarray(tri.min(axis=1)), np.ascontiguousarray(tri.max(axis=1)),
             np.ascontiguousarray(tri.mean(axis=1)), LEAF_SIZE)
-        t = tri[order]
+        self._fid = order.astype(np.int64)
+        self._set_corners(tri[order])
+        self._nodes = (lo, hi, child, start, count)
+        self.n_faces = len(f)
+
+    def _set_corners(self, t: np.ndarray) -> None:
+        """The triangles' corners (m, 3, 3) in leaf order, and which are degenerate."""
         self._A = np.ascontiguousarray(t[:, 0])
         self._B = np.ascontiguousarray(t[:, 1])
         self._C = np.ascontiguousarray(t[:, 2])
-        self._fid = order.astype(np.int64)
         ab, ac = self._B - self._A, self._C - self._A
         n2 = np.einsum("ij,ij->i", *(2 * [np.cross(ab, ac)]))
         scale = np.einsum("ij,ij->i", ab, ab) * np.einsum("ij,ij->i", ac, ac)
         self._flat = n2 <= 1e-20 * scale  # sin² of the angle at a: collinear or repeated corners
-        self._nodes = (lo, hi, child, start, count)
-        self.n_faces = len(f)
+
+    @property
+    def tree(self) -> tuple[np.ndarray, ...]:
+        """The tree without its boxes (leaf order, children, leaf starts and counts), for
+        :meth:`refitted`."""
+        return (self._fid, *self._nodes[2:])
+
+    @classmethod
+    def refitted(cls, vertices: np.ndarray, faces: np.ndarray, tree: tuple[np.ndarray, ...]
+                 ) -> "ClosestPointIndex":
+        """The index of ``faces`` over ``vertices`` on the ``tree`` of an index of the same
+        faces (over other vertices): its boxes refitted in one pass, no build. Queries are as
+        exact as on a new index, and the same where the vertices are those the tree was built
+        on; only ties between equally near triangles may resolve otherwise. The further the
+        vertices moved, the less the tree prunes."""
+        v = np.asarray(vertices, dtype=np.float64)
+        fid, child, start, count = tree
+        if v.ndim != 2 or v.shape[1] != 3 or len(faces) != len(fid):
+            raise ClosestPointError(f"vertices must be (n, 3) and faces the tree's, got "
+                                    f"{v.shape} and {len(faces)} faces for {len(fid)}")
+        if not np.isfinite(v).all():
+            raise ClosestPointError("vertices contain NaN or infinity")
+        out = cls.__new__(cls)
+        out._fid, out.n_faces = fid, len(fid)
+        out._set_corners(v[np.asarray(faces, dtype=np.int64)[fid]])
+        out._nodes = (*refit_bvh(out._A, out._B, out._C, child, start, count), child, start,
+                      count)
+        return out
 
     @property
     def n_nodes(self) -> int:
@@ -190,6 +221,7 @@ class ClosestPointIndex:
 
 
 _CACHE: "weakref.WeakKeyDictionary[TriMesh, ClosestPointIndex]" = weakref.WeakKeyDictionary()
+_TREES: "weakref.WeakKeyDictionary[object, tuple]" = weakref.WeakKeyDictionary()
 
 
 def closest_point_index(mesh: TriMesh) -> ClosestPointIndex:
@@ -198,3 +230,16 @@ def closest_point_index(mesh: TriMesh) -> ClosestPointIndex:
     if idx is None:
         idx = _CACHE[mesh] = ClosestPointIndex(mesh.vertices, mesh.faces)
     return idx
+
+
+def index_on(vertices: np.ndarray, faces: np.ndarray, owner: object) -> ClosestPointIndex:
+    """The index of ``faces`` over ``vertices``, where ``owner`` fixes the faces (a micro-mesh
+    topology: the fit's rounds move its vertices, never its triangles): built the first time,
+    then that tree refitted (:meth:`ClosestPointIndex.refitted`), for as long as ``owner``
+    lives. Only the tree is kept (about 25 bytes a face), not the corners."""
+    tree = _TREES.get(owner)
+    if tree is not None and len(tree[0]) == len(faces):
+        return ClosestPointIndex.refitted(vertices, faces, tree)
+    index = ClosestPointIndex(vertices, faces)
+    _TREES[owner] = index.tree
+    return index

@@ -5,7 +5,7 @@ import numba
 import numpy as np
 import pytest
 
-from core.closest import ClosestPointError, ClosestPointIndex, closest_point_index
+from core.closest import ClosestPointError, ClosestPointIndex, closest_point_index, index_on
 from core.mesh import TriMesh
 
 
@@ -180,3 +180,39 @@ def test_cached_per_mesh():
     m = TriMesh(v, f)
     assert closest_point_index(m) is closest_point_index(m)
     assert closest_point_index(TriMesh(v, f)) is not closest_point_index(m)
+
+
+def test_a_refitted_tree_answers_as_a_new_one():
+    """A tree built over some vertices, its boxes refitted to moved ones: the same answers as
+    brute force; on the vertices it was built on, the same bits as the built index."""
+    v, f = _blob(5)
+    idx = ClosestPointIndex(v, f)
+    rng = np.random.default_rng(6)
+    q = np.concatenate([v[rng.integers(0, len(v), 300)] + 0.05 * rng.normal(size=(300, 3)),
+                        rng.normal(size=(100, 3)) * 20])
+    same = ClosestPointIndex.refitted(v, f, idx.tree)
+    for a, b in zip(idx.query(q), same.query(q)):
+        assert np.array_equal(a, b)
+    moved = v + 0.3 * rng.normal(size=v.shape)
+    _check(ClosestPointIndex.refitted(moved, f, idx.tree), q, moved, f)
+    with pytest.raises(ClosestPointError):
+        ClosestPointIndex.refitted(moved, f[:-1], idx.tree)
+    with pytest.raises(ClosestPointError):
+        ClosestPointIndex.refitted(np.full_like(v, np.nan), f, idx.tree)
+
+
+def test_one_tree_per_owner():
+    """``index_on`` builds a tree for an owner once and refits it after that; a new owner
+    gets a new tree."""
+    class Owner:
+        pass
+
+    v, f = _sphere(8)
+    owner = Owner()
+    first = index_on(v, f, owner)
+    moved = v * 1.1 + 0.01
+    again = index_on(moved, f, owner)
+    assert again.tree[0] is first.tree[0]                  # the same tree, refitted
+    rng = np.random.default_rng(7)
+    _check(again, rng.normal(size=(200, 3)) * 2, moved, f)
+    assert index_on(moved, f, Owner()).tree[0] is not first.tree[0]

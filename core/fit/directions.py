@@ -54,8 +54,8 @@ def fit_directions(mm: MicroMesh, samples: Samples, smoothness: float = 1e-3,
     T = mm.topology.triangles
     Wd = sp.csr_matrix((W.data * np.repeat(d, np.diff(W.indptr)), W.indices, W.indptr),
                        shape=W.shape)
-    M, b = joint_system(sample_matches(P + D * d[:, None], T, samples, CHUNK), T, P, D, Wd,
-                        mm.topology, mm.base.faces, slopes)
+    matches = sample_matches(P + D * d[:, None], mm.topology, samples, CHUNK)
+    M, b = joint_system(matches, T, P, D, Wd, mm.topology, mm.base.faces, slopes)
     M, b = _held(M, b, Wd, D, d, hold)
     size = M.shape[0]
     damp = np.zeros(size)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..closest import ClosestPointIndex
+from ..closest import index_on
 from ..micromesh import MicroMesh
 from .samples import CHUNK, Samples
 
@@ -15,16 +15,16 @@ def surface_errors(mm: MicroMesh, samples: Samples, chunk: int = CHUNK
     weighted squared distance, and the weighted squared difference between the sample's normal
     and the micro-triangle's (what shading sees). Where the fitted micro-mesh still misses the
     reference. The samples are matched ``chunk`` at a time."""
-    tess = mm.tessellate()
-    V, T = tess.vertices, tess.triangles
-    index = ClosestPointIndex(V, T)
+    t = mm.topology
+    V, T = mm.micro_vertex_positions(), t.triangles
+    index = index_on(V, T, t)
     tn = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
     tn /= np.maximum(np.linalg.norm(tn, axis=1, keepdims=True), 1e-300)
     nf = mm.base.n_faces
     distance, normal = np.zeros(nf), np.zeros(nf)
     for _, pts, normals, w in samples.chunks(chunk):
         _, tri, dist = index.query(pts)
-        face = tess.triangle_face[tri]
+        face = t.triangle_face[tri]
         distance += np.bincount(face, weights=w * dist ** 2, minlength=nf)
         normal += np.bincount(face, weights=w * ((tn[tri] - normals) ** 2).sum(1), minlength=nf)
     return distance, normal

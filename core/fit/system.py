@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..barycentric import barycentrics
-from ..closest import ClosestPointIndex
+from ..closest import index_on
 from ..laplacian import uniform_laplacian
 from ..micromesh import MicroMesh
 from .joint_sums import joint_system
@@ -50,7 +50,7 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples: Samples, smoothness:
     offsets = np.zeros((nb, 3)) if offsets is None else offsets
     P, D = W @ (mm.base.vertices + offsets), mm.micro_vertex_directions()
     T = mm.topology.triangles                  # the non-degenerate micro-triangles
-    matches = sample_matches(P + D * d[:, None], T, samples, chunk)
+    matches = sample_matches(P + D * d[:, None], mm.topology, samples, chunk)
     joint = base_stiffness > 0
     if by_rows:
         M, b = _row_system(matches, P, D, W if joint else None, n + 3 * nb if joint else n,
@@ -129,11 +129,13 @@ def sorted_csr(M) -> sp.csr_matrix:
     return M
 
 
-def sample_matches(X: np.ndarray, T: np.ndarray, samples: Samples, chunk: int):
+def sample_matches(X: np.ndarray, topology, samples: Samples, chunk: int):
     """Per about ``chunk`` samples in order: (points (c, 3), normals (c, 3), weights (c,),
     matched micro-triangles (c,), their corners (c, 3), the closest points' barycentrics
-    (c, 3)) on the micro-surface of micro-vertices ``X`` and triangles ``T``."""
-    index = ClosestPointIndex(X, T)
+    (c, 3)) on the micro-surface of micro-vertices ``X`` and ``topology``'s triangles (their
+    index: ``core.closest.index_on``, one tree per topology, refitted round by round)."""
+    T = topology.triangles
+    index = index_on(X, T, topology)
     for _, pts, normals, weights in samples.chunks(chunk):
         cp, tri, _ = index.query(pts)
         corners = np.ascontiguousarray(T[tri], dtype=np.int64)
