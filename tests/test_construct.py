@@ -380,6 +380,34 @@ def test_the_optimisers_time_left_is_bounded_by_the_time_limit():
     assert free.bounded_eta(500.0) == 500.0
 
 
+def test_the_time_limit_leaves_the_finish_its_estimated_share():
+    """The limit holds the whole construction: the loop's share is 90 % of it less the
+    finish's estimate. 40 s into a 100 s limit a loop whose finish takes 20 s more pulls its
+    next subdivision forward, and with its subdivisions done it ends; without a finish to
+    wait for it goes on; where the finish alone takes the limit, the loop only subdivides."""
+    import time
+
+    from core.construct.schedule import Schedule
+    s = preset("default", time_limit_s=100.0, subdivide_at=(50, 90))
+    t0 = time.perf_counter() - 50.0
+    late = Schedule(s, t0, False, finish_s=20.0)
+    assert 0 < late.bounded_eta(500.0) <= 20.0
+    assert not late.out_of_time(10) and late.events == [10, 90]   # pulled forward to now
+    late.events_due(10)
+    assert not late.out_of_time(15) and late.events == [90]       # not within 10 iterations
+    assert not late.out_of_time(20) and late.events == [20]
+    late.events_due(20)
+    assert not late.out_of_time(21)                                # 50 s < 70 s
+    done = Schedule(s, t0 - 25.0, False, finish_s=20.0)
+    done.events = []
+    assert done.out_of_time(30) and done.stopped_early              # 75 s > 70 s
+    relaxed = Schedule(s, t0, False)
+    assert not relaxed.out_of_time(10) and relaxed.events == [50, 90]
+    huge = Schedule(s, time.perf_counter(), False, finish_s=500.0)
+    assert huge.bounded_eta(500.0) == 0.0
+    assert not huge.out_of_time(0) and huge.events == [0, 90]
+
+
 def test_a_reference_with_faces_wound_both_ways_is_turned_and_said(scene):
     """Half the reference's faces flipped: the construction turns them back (the caller's
     mesh is not changed), says so, and gets the result of the clean reference."""

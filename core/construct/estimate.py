@@ -4,9 +4,10 @@ settings before any heavy work, and the refusal of a run that will not fit in me
 The model is linear in the work each phase does (faces decimated and read, micro-triangles
 rendered per iteration and view pixel, micro-triangles fitted, faces rendered for the
 metrics); its time coefficients were fitted to `default` constructions of 269k and 1.07M
-faces on the developers' 2-core machine (docs/results.md, eleventh session) and are divided
-by this machine's speed relative to that one (``core.runtime.speed``, a probe of a few tens of
-milliseconds); the memory's were fitted to runs of up to 2.15M micro-triangles. Every run's
+faces on the developers' 2-core machine (docs/results.md, eleventh session; the fit's again
+in the fifteenth, with the direction round) and are divided by this machine's speed
+relative to that one (``core.runtime.speed``, a probe of a few tens of milliseconds); the
+memory's were fitted to runs of up to 2.15M micro-triangles. Every run's
 metrics keep the estimate beside the measurement, and ``bench/scale_bench.py`` prints both.
 Memory is the process's peak resident size.
 """
@@ -29,7 +30,7 @@ _T_INPUT_PER_FACE = 1.8e-5
 _T_ITER_FIXED = 0.005
 _T_ITER_PER_MICRO = 9.0e-7
 _T_ITER_PER_PIXEL = 1.6e-8
-_T_FIT_PER_MICRO = 4.5e-5
+_T_FIT_PER_MICRO = 5.8e-5
 _T_METRICS_PER_FACE = 1.05e-5
 # Bytes: the interpreter, the libraries and what does not grow with the input; per
 # micro-triangle (the micro-mesh, the optimiser's state, the fit's samples, matches and normal
@@ -84,9 +85,12 @@ def estimate(reference_faces: int, s: ConstructSettings, speed: float | None = N
               "metrics": _T_METRICS_PER_FACE * reference_faces if s.compute_metrics else 0.0}
     phases = {k: v / speed for k, v in phases.items()}
     seconds = _T_FIXED / speed + sum(phases.values())
-    if s.time_limit_s > 0:        # the limit counts wall seconds from the base building on
-        after = phases["input"] + phases["fit"] + phases["metrics"] + _T_FIXED / speed
-        seconds = min(seconds, s.time_limit_s + after)
+    if s.time_limit_s > 0:
+        # The limit holds from the base building to the metrics (``Schedule``): the loop gets
+        # what the rest leaves, but always its subdivisions (about 10 iterations each).
+        least = phases["base"] + phases["fit"] + phases["metrics"] + min(
+            phases["optimize"], 10 * len(s.subdivide_at) * per_iter / speed)
+        seconds = min(seconds, _T_FIXED / speed + phases["input"] + max(s.time_limit_s, least))
     images = s.n_views * s.train_resolution ** 2 + s.eval_views * s.eval_resolution ** 2
     peak = _M_FIXED + _M_PER_FACE * reference_faces + _M_PER_MICRO * m + _M_PER_PIXEL * images
     return Estimate(seconds, float(peak), m, phases)

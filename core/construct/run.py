@@ -154,7 +154,8 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     if run.fixed is not None:
         run.event(iteration=0, fixed_levels=True,
                   micro_triangles=effective_micro_triangles(run.fixed, run.base.face_adjacency))
-    schedule = Schedule(s, t_start, fixed_levels=run.fixed is not None)
+    schedule = Schedule(s, t_start, fixed_levels=run.fixed is not None,
+                        finish_s=run.finish_estimate_s)
     n_it, views = s.iterations, min(s.views_per_iter, len(cams))
     t_loop, it_done = time.perf_counter(), 0
     h = run.history

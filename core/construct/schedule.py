@@ -9,15 +9,21 @@ from ..settings import ConstructSettings
 
 class Schedule:
     """Subdivision events (absolute iterations), the iteration that freezes the base, and the
-    time limit: once 60% of ``time_limit_s`` is spent the next subdivision is pulled forward,
-    at 90% the optimisation ends (leaving time for LOD, bounds, output)."""
+    time limit: the whole construction, the base building and what follows the loop (the
+    fit, bounds, metrics: ``finish_s``, the estimate's seconds for them) included, within
+    ``time_limit_s``. The loop's own share ends at 90 % of the limit less ``finish_s``; once
+    two thirds of that are spent the next subdivision is pulled forward (at most every 10
+    iterations), and the loop ends at it once the subdivisions are done. Where the finish
+    alone takes the whole limit (millions of faces), the loop only subdivides."""
 
-    def __init__(self, s: ConstructSettings, t_start: float, fixed_levels: bool):
+    def __init__(self, s: ConstructSettings, t_start: float, fixed_levels: bool,
+                 finish_s: float = 0.0):
         self.events = sorted(set(int(i) for i in s.subdivide_at)) if s.progressive else []
         self.freeze_at = s.base_freeze_iteration
         if fixed_levels:
             self.events, self.freeze_at = [], 0   # displacements only from the first iteration
         self.limit = s.time_limit_s
+        self.loop_end = 0.9 * self.limit - max(0.0, finish_s)
         self.t_start = t_start
         self.last_event = -10
         self.stopped_early = False
@@ -27,20 +33,20 @@ class Schedule:
         if self.limit <= 0:
             return False
         el = time.perf_counter() - self.t_start
-        if el > 0.9 * self.limit and not self.events:
+        if el > self.loop_end and not self.events:
             self.stopped_early = True
             return True
-        if el > 0.6 * self.limit and self.events and self.events[0] > it \
+        if el > self.loop_end * 2 / 3 and self.events and self.events[0] > it \
                 and it - self.last_event >= 10:
             self.events[0] = it
         return False
 
     def bounded_eta(self, eta: float) -> float:
         """``eta`` (the loop's remaining iterations at its pace so far) bounded by the time
-        limit, near 90 % of which the loop ends once the subdivisions are done."""
+        limit, at whose loop share the loop ends once the subdivisions are done."""
         if self.limit <= 0:
             return eta
-        return min(eta, max(0.0, 0.9 * self.limit - (time.perf_counter() - self.t_start)))
+        return min(eta, max(0.0, self.loop_end - (time.perf_counter() - self.t_start)))
 
     def events_due(self, it: int) -> int:
         """How many subdivision events fall due at ``it`` (removed from the list)."""
