@@ -86,11 +86,13 @@ def estimate(reference_faces: int, s: ConstructSettings, speed: float | None = N
     phases = {k: v / speed for k, v in phases.items()}
     seconds = _T_FIXED / speed + sum(phases.values())
     if s.time_limit_s > 0:
-        # The limit holds from the base building to the metrics (``Schedule``): the loop gets
-        # what the rest leaves, but always its subdivisions (about 10 iterations each).
+        # The limit holds from the base building to the metrics (``Schedule``: the loop ends
+        # where the rest's estimate leaves 90 % of it), but the loop always subdivides (about
+        # 10 iterations each).
         least = phases["base"] + phases["fit"] + phases["metrics"] + min(
             phases["optimize"], 10 * len(s.subdivide_at) * per_iter / speed)
-        seconds = min(seconds, _T_FIXED / speed + phases["input"] + max(s.time_limit_s, least))
+        seconds = min(seconds, _T_FIXED / speed + phases["input"] +
+                      max(0.9 * s.time_limit_s, least))
     images = s.n_views * s.train_resolution ** 2 + s.eval_views * s.eval_resolution ** 2
     peak = _M_FIXED + _M_PER_FACE * reference_faces + _M_PER_MICRO * m + _M_PER_PIXEL * images
     return Estimate(seconds, float(peak), m, phases)
