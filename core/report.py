@@ -191,8 +191,11 @@ def _table(ax, data: dict) -> None:
     for key, label in (("base_fit", "base moved by the fit"),
                        ("direction_fit", "directions turned by the fit"),
                        ("lp_bounds", "least-volume bounds")):
-        if data["metrics"].get(key):
-            rows.append([label, "kept" if data["metrics"][key]["kept"] else "refused"])
+        note = data["metrics"].get(key)
+        if note:
+            passes = note.get("passes_kept", 0)
+            rows.append([label, ("kept" if note["kept"] else "refused") +
+                         (f" ({passes} passes)" if passes > 1 else "")])
     rows += [[f"time: {k}", f"{v:.1f} s"] for k, v in sorted(data["timings"].items())
              if v >= 0.5]
     rows += [["device", data.get("device", "")], ["threads", str(data.get("threads", ""))]]

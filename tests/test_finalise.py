@@ -58,7 +58,7 @@ def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, 
     cost = lambda lv: effective_micro_triangles(lv, base.face_adjacency)  # noqa: E731
     run = SimpleNamespace(s=preset("default"), base=base, cost=cost, budget=cost(levels),
                           fixed=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
-                          notes={}, check_stop=lambda: None,
+                          notes={}, check_stop=lambda: None, deadline=np.inf,
                           announce=lambda phase: None)
     z = base.vertices[base.faces].mean(1)[:, 2]
     if hot_cap:       # the exchange as it should go: up where the detail is
@@ -82,10 +82,12 @@ def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, 
 
 @pytest.mark.parametrize("growth", [1.1, 0.0])
 def test_the_base_and_the_directions_move_only_where_it_helps(growth, monkeypatch):
-    """fitting.fitted's last rounds move the base vertices, then turn the directions; each is
-    kept where the shading error falls and the shell widens by a tenth at most (here: a bumpy
-    sphere, kept), else the displacements-only fit stays (forced by allowing no shell at
-    all); without ``fit_directions`` the directions are not touched."""
+    """fitting.fitted's last rounds move the base vertices, then turn the directions, three
+    times; each is kept where the shading error falls and the shell stays within a tenth of
+    where it was before them (here: a bumpy sphere, kept, the later passes lowering the
+    error further unless the time limit is over), else the displacements-only fit stays
+    (forced by allowing no shell at all); without ``fit_directions`` the directions are not
+    touched."""
     from types import SimpleNamespace
 
     import core.construct.fitting as fin
@@ -99,19 +101,30 @@ def test_the_base_and_the_directions_move_only_where_it_helps(growth, monkeypatc
     mm = MicroMesh.flat(base, np.full(base.n_faces, 2))
     run = SimpleNamespace(s=preset("default", residual_lod=0.0), base=base, cost=None, budget=0,
                           fixed=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
-                          notes={}, check_stop=lambda: None,
+                          notes={}, check_stop=lambda: None, deadline=np.inf,
                           announce=lambda phase: None)
     monkeypatch.setattr(fin, "_SHELL_GROWTH", growth)
-    out, *_ = fin.fitted(run, mm)
+    out, _, error = fin.fitted(run, mm)
     note = run.notes["base_fit"]
     assert note["kept"] is (growth > 0)
-    assert note["shading_error_after"] < note["shading_error_before"]
+    assert note["passes_kept"] >= 2 if growth > 0 else note["passes_kept"] == 0  # of three
+    assert (note["shading_error_after"] < note["shading_error_before"]) is (growth > 0)
     moved = np.abs(out.base.vertices - base.vertices).max()
     assert bool(moved > 0) is (growth > 0)
     turn = run.notes["direction_fit"]
     assert turn["kept"] is (growth > 0)
-    assert turn["shading_error_after"] < turn["shading_error_before"]
+    assert (turn["shading_error_after"] < turn["shading_error_before"]) is (growth > 0)
     assert bool(np.abs(out.directions - mm.directions).max() > 0) is (growth > 0)
+    if growth > 0:     # the later passes lower the shading error further...
+        run.s, run.notes = preset("default", residual_lod=0.0, fit_passes=1), {}
+        _, _, once = fin.fitted(run, mm)
+        assert run.notes["base_fit"]["passes_kept"] == 1 and error < once
+        # ...unless the time limit is over: then one pass only, and the notes say why
+        run.s, run.notes, run.deadline = preset("default", residual_lod=0.0), {}, 0.0
+        _, _, late = fin.fitted(run, mm)
+        assert late == once and run.notes["fit_passes"] == {"done": 1,
+                                                            "cut_by_time_limit": True}
+        run.deadline = np.inf
     run.s, run.notes = preset("default", residual_lod=0.0, fit_directions=False), {}
     out, *_ = fin.fitted(run, mm)
     assert "direction_fit" not in run.notes

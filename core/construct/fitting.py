@@ -1,9 +1,12 @@
 """The fit stage of a construction's end (``core.fit``): the displacements fitted to the
 reference, levels moved to where the fit still misses it and fitted again
 (``choose_levels.residual_exchange``; kept only where that lowers the shading error), and
-the base vertices fitted with the displacements, then the directions (each kept where that
-lowers the shading error without widening the shell)."""
+the base vertices fitted with the displacements, then the directions, pass after pass (each
+kept where that lowers the shading error and keeps the shell within a tenth of where it
+was)."""
 from __future__ import annotations
+
+import time
 
 import numpy as np
 
@@ -21,74 +24,97 @@ def fitted(run: RunState, mm: MicroMesh) -> tuple[MicroMesh, Samples, float | No
     reference samples: where the residual model misjudges a mesh (smooth ones, whose residual
     falls faster than it assumes), the first fit stays. ``run.notes["residual_lod"]`` says
     what happened. Then the base vertices are fitted with the displacements
-    (``fit_base_stiffness``), and last the directions (``fit_directions``), each kept where
-    it helps (neither where the base is frozen). Returns the micro-mesh, the reference
-    samples it was fitted to and its shading error on them (None where no round measured
-    it)."""
+    (``fit_base_stiffness``), and the directions turned (``fit_directions``), each kept where
+    it lowers the shading error and the shell stays within a tenth of what it was before
+    the first of them; the two, ``fit_passes`` times (neither where the base is frozen).
+    Returns the micro-mesh, the reference samples it was fitted to and its shading error on
+    them (None where no round measured it)."""
     ref = run.scene.ref
     with run.timer.phase("fit"):
         samples = fit_samples(mm, ref)
         mm = fit_rounds(run, mm, samples)
-    known = (None, None)        # mm's shading error on the samples and shell, where known
+    error = None                # mm's shading error on the samples, where known
     if run.s.residual_lod > 0 and run.fixed is None and run.cost is not None:
         run.check_stop()
         run.announce("residual_lod")
         mm, samples, error = _exchanged(run, mm, samples)
-        known = (error, None)
-    if run.s.fit_base_stiffness > 0 and run.fixed is None:
-        run.check_stop()
-        run.announce("base_fit")
-        mm, known = _base_moved(run, mm, samples, known)
-    if run.s.fit_directions and run.fixed is None:
-        run.check_stop()
-        run.announce("direction_fit")
-        mm, known = _directions_turned(run, mm, samples, known)
-    return mm, samples, known[0]
+    if run.fixed is None:
+        mm, error = _moving_rounds(run, mm, samples, error)
+    return mm, samples, error
 
 
-# A round's result is kept where the shell grows by at most this factor.
+def _moving_rounds(run: RunState, mm: MicroMesh, samples, error: float | None
+                   ) -> tuple[MicroMesh, float | None]:
+    """The base round and the directions' round (those the settings ask for), ``fit_passes``
+    times, each kept by :func:`_kept` with the shell capped at ``_SHELL_GROWTH`` times mm's;
+    the micro-mesh and its shading error (``error``: mm's, where known). A pass after the
+    first that would end past ``run.deadline`` (the time limit; each pass takes about as long
+    as the one before) is left out, and ``run.notes["fit_passes"]`` says so."""
+    moving = [(note, move) for on, note, move in (
+        (run.s.fit_base_stiffness > 0, "base_fit", _base_moved),
+        (run.s.fit_directions, "direction_fit", _directions_turned)) if on]
+    if not moving or run.s.fit_passes < 1:
+        return mm, error
+    for note, _ in moving:
+        run.notes.pop(note, None)
+    with run.timer.phase("fit"):
+        shell = micromesh_shell_volume(mm, tight_bounds(mm))
+    known, cap, last = (error, shell), _SHELL_GROWTH * shell, 0.0
+    for n in range(run.s.fit_passes):
+        began = time.perf_counter()
+        if n and began + last > run.deadline:      # another pass would overrun the limit
+            run.notes["fit_passes"] = {"done": n, "cut_by_time_limit": True}
+            break
+        for note, move in moving:
+            run.check_stop()
+            run.announce(note)
+            mm, known = _kept(run, note, mm, move(run, mm, samples), samples, known, cap)
+        last = time.perf_counter() - began
+    return mm, known[0]
+
+
+# The rounds that move the base and turn the directions are kept where the shell they leave
+# is at most this factor of the one before the first of them.
 _SHELL_GROWTH = 1.1
 
 
-def _base_moved(run: RunState, mm: MicroMesh, samples, known=(None, None)):
-    """One fit round with the base vertices as unknowns, kept where it lowers the shading
-    error without widening the shell by more than a tenth (on parts thinner than the samples'
-    spacing a base vertex can be pulled across to the far side); ``run.notes["base_fit"]``
-    says what happened. ``known`` and the result's second item: see :func:`_kept`."""
+def _base_moved(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
+    """One fit round with the base vertices as unknowns (on parts thinner than the samples'
+    spacing a base vertex can be pulled across to the far side: the shell's cap)."""
     with run.timer.phase("fit"):
-        moved = fit_rounds(run, mm, samples, run.s.fit_base_stiffness, rounds=1)
-    return _kept(run, "base_fit", mm, moved, samples, known)
+        return fit_rounds(run, mm, samples, run.s.fit_base_stiffness, rounds=1)
 
 
-def _directions_turned(run: RunState, mm: MicroMesh, samples, known=(None, None)):
+def _directions_turned(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
     """One fit round with the base directions as unknowns too (``core.fit.fit_directions``),
     then one over the displacements (a direction put back leaves its neighbours' values
-    off); kept as the base round is; ``run.notes["direction_fit"]`` says what happened."""
+    off)."""
     with run.timer.phase("fit"):
         turned = fit_directions(mm, samples, run.s.fit_smoothness, run.s.fit_slopes)
-        turned = fit_rounds(run, turned, samples, rounds=1)
-    return _kept(run, "direction_fit", mm, turned, samples, known)
+        return fit_rounds(run, turned, samples, rounds=1)
 
 
 def _kept(run: RunState, note: str, mm: MicroMesh, moved: MicroMesh, samples,
-          known=(None, None)) -> tuple[MicroMesh, tuple[float, float]]:
-    """(``moved`` where it lowers the shading error of ``samples`` and widens the shell by at
-    most ``_SHELL_GROWTH``, else ``mm``; that one's (shading error, shell)), the decision in
-    ``run.notes[note]``. ``known``: mm's (shading error, shell) where the caller has them
-    (None where not): each is a pass over the samples or the micro-mesh at most."""
+          known: tuple, cap: float) -> tuple[MicroMesh, tuple[float, float]]:
+    """(``moved`` where it lowers the shading error of ``samples`` and leaves a shell of at
+    most ``cap``, else ``mm``; that one's (shading error, shell)). ``known``: mm's (shading
+    error, shell), the error None where the caller has not measured it. ``run.notes[note]``
+    says what the passes of this round did: whether any was kept and how many, the error and
+    shell before the first and after the last."""
     error, shell = known
     with run.timer.phase("fit"):
         if error is None:
             error = float(surface_errors(mm, samples)[1].sum())
-        if shell is None:
-            shell = micromesh_shell_volume(mm, tight_bounds(mm))
         after = float(surface_errors(moved, samples)[1].sum())
         shell_after = micromesh_shell_volume(moved, tight_bounds(moved))
-    keep = bool(after < error and shell_after <= _SHELL_GROWTH * shell)
-    run.notes[note] = {"kept": keep, "shading_error_before": error,
-                       "shading_error_after": after,
-                       "shell_before": float(shell), "shell_after": float(shell_after)}
-    return (moved, (after, shell_after)) if keep else (mm, (error, shell))
+    keep = bool(after < error and shell_after <= cap)
+    out, known = (moved, (after, shell_after)) if keep else (mm, (error, shell))
+    first = run.notes.get(note, {"kept": False, "passes_kept": 0,
+                                 "shading_error_before": error, "shell_before": float(shell)})
+    run.notes[note] = {**first, "kept": first["kept"] or keep,
+                       "passes_kept": first["passes_kept"] + keep,
+                       "shading_error_after": known[0], "shell_after": float(known[1])}
+    return out, known
 
 
 def _exchanged(run: RunState, mm: MicroMesh, samples) -> tuple[MicroMesh, tuple, float | None]:

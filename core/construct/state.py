@@ -1,6 +1,7 @@
 """The explicit state of one construction: what every phase reads and updates."""
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -42,7 +43,8 @@ class RunState:
     the last subdivision; ``fixed``: the artist's levels (then no schedule, no LOD);
     ``notes``: what the run decided on the way (e.g. ``residual_lod``), for the metrics;
     ``progress`` and ``finish_estimate_s`` (the estimate's seconds for the fit and the metrics)
-    serve :meth:`announce`.
+    serve :meth:`announce`; ``deadline``: where the settings' time limit ends (the fit's
+    optional passes stop short of it).
     """
 
     s: ConstructSettings
@@ -65,6 +67,7 @@ class RunState:
     notes: dict = field(default_factory=dict)
     progress: Callable[[Progress], None] | None = None
     finish_estimate_s: float = 0.0
+    deadline: float = math.inf         # perf_counter() by which the time limit wants it done
     _finish_start: float | None = None
 
     def __post_init__(self) -> None:
