@@ -100,7 +100,7 @@ def report_data(metrics: dict, history: dict, levels: np.ndarray, settings_chang
     m = {k: metrics.get(k) for k, _, _ in ROWS if k in metrics}
     if metrics.get("bytes"):
         m["compression"] = input_bytes / metrics["bytes"]
-    for key in ("residual_lod", "base_fit", "direction_fit", "lp_bounds"):  # the end's decisions
+    for key in ("residual_lod", "base_fit", "direction_fit", "fit_passes", "lp_bounds"):
         if isinstance(metrics.get(key), dict):
             m[key] = dict(metrics[key])
     return {"metrics": m, "levels_hist": np.bincount(levels, minlength=6).tolist(),
@@ -196,6 +196,9 @@ def _table(ax, data: dict) -> None:
             passes = note.get("passes_kept", 0)
             rows.append([label, ("kept" if note["kept"] else "refused") +
                          (f" ({passes} passes)" if passes > 1 else "")])
+    cut = data["metrics"].get("fit_passes")
+    if cut:
+        rows.append(["fit passes (then the time limit)", str(cut["done"])])
     rows += [[f"time: {k}", f"{v:.1f} s"] for k, v in sorted(data["timings"].items())
              if v >= 0.5]
     rows += [["device", data.get("device", "")], ["threads", str(data.get("threads", ""))]]

@@ -77,3 +77,13 @@ def test_the_residual_lod_decision_is_reported(optimised):
     _, data = make_report(res, ref, {k: v for k, v in res.metrics.items()
                                      if k != "residual_lod"}, "fast")
     assert "residual_lod" not in data["metrics"]
+
+
+def test_fit_passes_cut_by_the_time_limit_are_reported(optimised):
+    """Where the time limit cut the fit's passes, the JSON says after how many."""
+    ref, res = optimised
+    cut = {"done": 1, "cut_by_time_limit": True}
+    png, data = make_report(res, ref, {**res.metrics, "fit_passes": cut}, "fast")
+    assert data["metrics"]["fit_passes"] == cut and _png(png).shape[:2] == (SIZE[1], SIZE[0])
+    _, data = make_report(res, ref, res.metrics, "fast")
+    assert "fit_passes" not in data["metrics"]

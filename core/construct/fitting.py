@@ -48,8 +48,8 @@ def _moving_rounds(run: RunState, mm: MicroMesh, samples, error: float | None
     """The base round and the directions' round (those the settings ask for), ``fit_passes``
     times, each kept by :func:`_kept` with the shell capped at ``_SHELL_GROWTH`` times mm's;
     the micro-mesh and its shading error (``error``: mm's, where known). A pass after the
-    first that would end past ``run.deadline`` (the time limit; each pass takes about as long
-    as the one before) is left out, and ``run.notes["fit_passes"]`` says so."""
+    first that would end past ``run.deadline`` (90 % into the time limit; a pass takes about
+    as long as the one before) is left out, and ``run.notes["fit_passes"]`` says so."""
     moving = [(note, move) for on, note, move in (
         (run.s.fit_base_stiffness > 0, "base_fit", _base_moved),
         (run.s.fit_directions, "direction_fit", _directions_turned)) if on]

@@ -139,8 +139,8 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     run = _setup(reference, base, cameras, s, dev, should_stop, fixed)
     run.progress = progress
     run.finish_estimate_s = guess.phases["fit"] + guess.phases["metrics"]
-    if s.time_limit_s > 0:
-        run.deadline = t_start + s.time_limit_s
+    if s.time_limit_s > 0:      # the loop's share ends there too, less the finish's estimate
+        run.deadline = t_start + 0.9 * s.time_limit_s
     if cameras is not None:
         warnings += check_views(run.scene.ref, run.scene.cams, dev)
     run.timer.times["setup"] = time.perf_counter() - t_setup

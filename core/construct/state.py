@@ -43,8 +43,8 @@ class RunState:
     the last subdivision; ``fixed``: the artist's levels (then no schedule, no LOD);
     ``notes``: what the run decided on the way (e.g. ``residual_lod``), for the metrics;
     ``progress`` and ``finish_estimate_s`` (the estimate's seconds for the fit and the metrics)
-    serve :meth:`announce`; ``deadline``: where the settings' time limit ends (the fit's
-    optional passes stop short of it).
+    serve :meth:`announce`; ``deadline``: 90 % into the settings' time limit, where the
+    fit's later passes stop short (the bounds and the metrics come after them).
     """
 
     s: ConstructSettings
@@ -67,7 +67,7 @@ class RunState:
     notes: dict = field(default_factory=dict)
     progress: Callable[[Progress], None] | None = None
     finish_estimate_s: float = 0.0
-    deadline: float = math.inf         # perf_counter() by which the time limit wants it done
+    deadline: float = math.inf         # perf_counter(): the fit's later passes end before it
     _finish_start: float | None = None
 
     def __post_init__(self) -> None:
