@@ -77,7 +77,7 @@ class ConstructSettings:
     fit_base_stiffness: float = 1e-3  # how firmly the fit holds the base vertices (0: fixed)
     fit_directions: bool = True      # then turn the base directions too, where that helps
                                      # (core.fit.directions; ours)
-    fit_passes: int = 3              # the base round and the directions' round, this many
+    fit_passes: int = 5              # the base round and the directions' round, this many
                                      # times (the shell within a tenth over all of them)
     residual_lod: float = 0.15       # after the fit, this fraction of faces may go up a level
                                      # where it still misses the reference, others down, same

@@ -82,7 +82,7 @@ def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, 
 
 @pytest.mark.parametrize("growth", [1.1, 0.0])
 def test_the_base_and_the_directions_move_only_where_it_helps(growth, monkeypatch):
-    """fitting.fitted's last rounds move the base vertices, then turn the directions, three
+    """fitting.fitted's last rounds move the base vertices, then turn the directions, five
     times; each is kept where the shading error falls and the shell stays within a tenth of
     where it was before them (here: a bumpy sphere, kept, the later passes lowering the
     error further unless the time limit is over), else the displacements-only fit stays
@@ -107,7 +107,7 @@ def test_the_base_and_the_directions_move_only_where_it_helps(growth, monkeypatc
     out, _, error = fin.fitted(run, mm)
     note = run.notes["base_fit"]
     assert note["kept"] is (growth > 0)
-    assert note["passes_kept"] >= 2 if growth > 0 else note["passes_kept"] == 0  # of three
+    assert note["passes_kept"] >= 2 if growth > 0 else note["passes_kept"] == 0  # of five
     assert (note["shading_error_after"] < note["shading_error_before"]) is (growth > 0)
     moved = np.abs(out.base.vertices - base.vertices).max()
     assert bool(moved > 0) is (growth > 0)
