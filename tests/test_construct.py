@@ -404,6 +404,8 @@ def test_the_time_limit_leaves_the_finish_its_estimated_share():
     assert done.out_of_time(30) and done.stopped_early              # 75 s > 70 s
     relaxed = Schedule(s, t0, False)
     assert not relaxed.out_of_time(10) and relaxed.events == [50, 90]
+    assert relaxed.deadline == pytest.approx(t0 + 90.0)       # where the fit's passes stop
+    assert Schedule(preset("default", time_limit_s=0.0), t0, False).deadline == np.inf
     huge = Schedule(s, time.perf_counter(), False, finish_s=500.0)
     assert huge.bounded_eta(500.0) == 0.0
     assert not huge.out_of_time(0) and huge.events == [0, 90]

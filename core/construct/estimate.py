@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..settings import ConstructSettings
+from .schedule import END_SHARE
 from .types import ConstructError
 
 _MB = 2 ** 20
@@ -92,7 +93,7 @@ def estimate(reference_faces: int, s: ConstructSettings, speed: float | None = N
         least = phases["base"] + phases["fit"] + phases["metrics"] + min(
             phases["optimize"], 10 * len(s.subdivide_at) * per_iter / speed)
         seconds = min(seconds, _T_FIXED / speed + phases["input"] +
-                      max(0.9 * s.time_limit_s, least))
+                      max(END_SHARE * s.time_limit_s, least))
     images = s.n_views * s.train_resolution ** 2 + s.eval_views * s.eval_resolution ** 2
     peak = _M_FIXED + _M_PER_FACE * reference_faces + _M_PER_MICRO * m + _M_PER_PIXEL * images
     return Estimate(seconds, float(peak), m, phases)

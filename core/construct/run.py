@@ -139,8 +139,6 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     run = _setup(reference, base, cameras, s, dev, should_stop, fixed)
     run.progress = progress
     run.finish_estimate_s = guess.phases["fit"] + guess.phases["metrics"]
-    if s.time_limit_s > 0:      # the loop's share ends there too, less the finish's estimate
-        run.deadline = t_start + 0.9 * s.time_limit_s
     if cameras is not None:
         warnings += check_views(run.scene.ref, run.scene.cams, dev)
     run.timer.times["setup"] = time.perf_counter() - t_setup
@@ -158,6 +156,7 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
                   micro_triangles=effective_micro_triangles(run.fixed, run.base.face_adjacency))
     schedule = Schedule(s, t_start, fixed_levels=run.fixed is not None,
                         finish_s=run.finish_estimate_s)
+    run.deadline = schedule.deadline
     n_it, views = s.iterations, min(s.views_per_iter, len(cams))
     t_loop, it_done = time.perf_counter(), 0
     h = run.history

@@ -2,9 +2,14 @@
 phase, and the time limit (ours) that compresses the schedule."""
 from __future__ import annotations
 
+import math
 import time
 
 from ..settings import ConstructSettings
+
+# The share of the time limit by which the loop and the fit's later passes are done (the
+# bounds, metrics and files come after them).
+END_SHARE = 0.9
 
 
 class Schedule:
@@ -23,10 +28,15 @@ class Schedule:
         if fixed_levels:
             self.events, self.freeze_at = [], 0   # displacements only from the first iteration
         self.limit = s.time_limit_s
-        self.loop_end = 0.9 * self.limit - max(0.0, finish_s)
+        self.loop_end = END_SHARE * self.limit - max(0.0, finish_s)
         self.t_start = t_start
         self.last_event = -10
         self.stopped_early = False
+
+    @property
+    def deadline(self) -> float:
+        """``perf_counter()`` at ``END_SHARE`` of the time limit (inf without one)."""
+        return self.t_start + END_SHARE * self.limit if self.limit > 0 else math.inf
 
     def out_of_time(self, it: int) -> bool:
         """True when the loop must end now; may pull the next event forward."""

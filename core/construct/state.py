@@ -43,8 +43,8 @@ class RunState:
     the last subdivision; ``fixed``: the artist's levels (then no schedule, no LOD);
     ``notes``: what the run decided on the way (e.g. ``residual_lod``), for the metrics;
     ``progress`` and ``finish_estimate_s`` (the estimate's seconds for the fit and the metrics)
-    serve :meth:`announce`; ``deadline``: 90 % into the settings' time limit, where the
-    fit's later passes stop short (the bounds and the metrics come after them).
+    serve :meth:`announce`; ``deadline``: ``Schedule.deadline``, where the fit's later passes
+    stop short (the bounds and the metrics come after them).
     """
 
     s: ConstructSettings
