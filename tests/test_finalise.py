@@ -39,7 +39,8 @@ def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, 
     """fitting.fitted: the levels residual_exchange moves are fitted again and kept only when
     the shading error of the same reference samples falls; otherwise the first fit stays.
     Detail on one cap of a sphere: moving levels there helps (kept). Moving levels onto a
-    smooth cap while the detailed one loses them hurts (refused)."""
+    smooth cap while the detailed one loses them hurts (refused). The exchange is given each
+    face's share of the distance error plus its share of the shading error."""
     from types import SimpleNamespace
 
     import core.construct.fitting as fin
@@ -66,8 +67,21 @@ def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, 
     else:             # the wrong way round: up on the smooth cap, down on the detail
         up, down = z < -0.5, z > 0.5
     wanted = np.where(up, 3, np.where(down, 1, levels))
-    monkeypatch.setattr(fin, "residual_exchange", lambda run, lv, E: wanted)
+    seen = {}
+    measured = fin.surface_errors
+
+    def errors(*args):
+        seen.setdefault("errors", measured(*args))     # the first: the exchange's
+        return measured(*args)
+
+    def exchange(run, lv, E):
+        seen["E"] = E
+        return wanted
+    monkeypatch.setattr(fin, "surface_errors", errors)
+    monkeypatch.setattr(fin, "residual_exchange", exchange)
     out, *_ = fin.fitted(run, mm)
+    dist, normal = seen["errors"]    # each face's share of both errors, weighed alike
+    np.testing.assert_allclose(seen["E"], dist / dist.sum() + normal / normal.sum())
     note = run.notes["residual_lod"]
     assert note["kept"] is hot_cap
     assert (note["shading_error_after"] < note["shading_error_before"]) is hot_cap

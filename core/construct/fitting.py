@@ -19,7 +19,8 @@ from .state import RunState
 
 def fitted(run: RunState, mm: MicroMesh) -> tuple[MicroMesh, Samples, float | None]:
     """``mm`` with its displacements fitted to the reference (``core.fit``); then, with a
-    budget, levels moved to where the fit still misses it and fitted again. The moved levels
+    budget, levels moved to where the fit still misses it (each face's part of the total
+    distance error plus its part of the shading error) and fitted again. The moved levels
     are kept only where they lower the shading error (squared normal differences) of the same
     reference samples: where the residual model misjudges a mesh (smooth ones, whose residual
     falls faster than it assumes), the first fit stays. ``run.notes["residual_lod"]`` says
@@ -123,7 +124,7 @@ def _exchanged(run: RunState, mm: MicroMesh, samples) -> tuple[MicroMesh, tuple,
     them."""
     with run.timer.phase("residual_lod"):
         dist, normal = surface_errors(mm, samples)
-        new = residual_exchange(run, mm.levels, dist)
+        new = residual_exchange(run, mm.levels, _share(dist) + _share(normal))
     if np.array_equal(new, mm.levels):
         return mm, samples, float(normal.sum())
     with run.timer.phase("fit"):
@@ -138,6 +139,13 @@ def _exchanged(run: RunState, mm: MicroMesh, samples) -> tuple[MicroMesh, tuple,
                                  "shading_error_before": float(normal.sum()),
                                  "shading_error_after": float(after)}
     return (moved, moved_samples, None) if keep else (mm, samples, float(normal.sum()))
+
+
+def _share(error: np.ndarray) -> np.ndarray:
+    """Each face's part of the total ``error`` (zeros where there is none): the residual
+    exchange weighs the faces' distance and shading errors alike."""
+    total = float(error.sum())
+    return error / total if total > 0 else np.zeros_like(error)
 
 
 def fit_rounds(run: RunState, mm: MicroMesh, samples, base_stiffness: float = 0.0,
