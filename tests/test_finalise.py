@@ -34,6 +34,31 @@ def test_residual_exchange_moves_levels_to_where_the_fit_misses():
     np.testing.assert_array_equal(residual_exchange(run, levels, E), levels)
 
 
+@pytest.mark.parametrize("min_level", [0, 1])
+def test_quiet_faces_go_down_to_min_level(min_level):
+    """The default preset lets the exchange take faces the fit already matches down to level 0
+    (min_level 0); with min_level 1 (the paper's) none goes below 1."""
+    from types import SimpleNamespace
+
+    from core.construct.choose_levels import residual_exchange
+    from core.lod import effective_micro_triangles
+    from core.microtopology import is_balanced
+
+    assert preset("default").min_level == 0 and preset("paper").min_level == 1
+    v, f = icosphere(2)
+    base = TriMesh(v, f)
+    levels = np.full(base.n_faces, 1)
+    cost = lambda lv: effective_micro_triangles(lv, base.face_adjacency)  # noqa: E731
+    run = SimpleNamespace(s=preset("default", min_level=min_level), base=base, cost=cost,
+                          budget=cost(levels))
+    E = np.full(base.n_faces, 1e-6)
+    hot = np.flatnonzero(base.vertices[base.faces].mean(1)[:, 2] > 0.8)
+    E[hot] = 1.0
+    new = residual_exchange(run, levels, E)
+    assert cost(new) <= run.budget and is_balanced(base, new) and new.min() == min_level
+    assert (new[hot] == 2).all() if min_level == 0 else np.array_equal(new, levels)
+
+
 @pytest.mark.parametrize("hot_cap", [False, True])
 def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, monkeypatch):
     """fitting.fitted: the levels residual_exchange moves are fitted again and kept only when
@@ -71,8 +96,9 @@ def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, 
     measured = fin.surface_errors
 
     def errors(*args):
-        seen.setdefault("errors", measured(*args))     # the first: the exchange's
-        return measured(*args)
+        out = measured(*args)
+        seen.setdefault("errors", out)     # the first: the exchange's
+        return out
 
     def exchange(run, lv, E):
         seen["E"] = E
