@@ -127,19 +127,8 @@ class ClosestPointIndex:
     """
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray) -> None:
-        v = np.asarray(vertices, dtype=np.float64)
-        f = np.asarray(faces)
-        if v.ndim != 2 or v.shape[1] != 3:
-            raise ClosestPointError(f"vertices must be (n, 3), got {v.shape}")
-        if f.ndim != 2 or f.shape[1] != 3 or not np.issubdtype(f.dtype, np.integer):
-            raise ClosestPointError(f"faces must be (m, 3) integers, got {f.shape} {f.dtype}")
-        if len(f) == 0:
-            raise ClosestPointError("mesh has no faces")
-        if f.min() < 0 or f.max() >= len(v):
-            raise ClosestPointError("face index out of range")
-        if not np.isfinite(v).all():
-            raise ClosestPointError("vertices contain NaN or infinity")
-        tri = v[f.astype(np.int64)]                                  # (m, 3, 3)
+        v, f = _checked(vertices, faces)
+        tri = v[f]                                                   # (m, 3, 3)
         lo, hi, child, start, count, order = build_bvh(
             np.ascontiguousarray(tri.min(axis=1)), np.ascontiguousarray(tri.max(axis=1)),
             np.ascontiguousarray(tri.mean(axis=1)), LEAF_SIZE)
@@ -172,16 +161,13 @@ class ClosestPointIndex:
         exact as on a new index, and the same where the vertices are those the tree was built
         on; only ties between equally near triangles may resolve otherwise. The further the
         vertices moved, the less the tree prunes."""
-        v = np.asarray(vertices, dtype=np.float64)
+        v, f = _checked(vertices, faces)
         fid, child, start, count = tree
-        if v.ndim != 2 or v.shape[1] != 3 or len(faces) != len(fid):
-            raise ClosestPointError(f"vertices must be (n, 3) and faces the tree's, got "
-                                    f"{v.shape} and {len(faces)} faces for {len(fid)}")
-        if not np.isfinite(v).all():
-            raise ClosestPointError("vertices contain NaN or infinity")
+        if len(f) != len(fid):
+            raise ClosestPointError(f"the tree holds {len(fid)} faces, got {len(f)}")
         out = cls.__new__(cls)
         out._fid, out.n_faces = fid, len(fid)
-        out._set_corners(v[np.asarray(faces, dtype=np.int64)[fid]])
+        out._set_corners(v[f[fid]])
         out._nodes = (*refit_bvh(out._A, out._B, out._C, child, start, count), child, start,
                       count)
         return out
@@ -218,6 +204,24 @@ class ClosestPointIndex:
         if out.any():
             dist[out], out_f[out], out_p[out] = np.inf, -1, np.nan
         return out_p, out_f, dist
+
+
+def _checked(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices as float64 (n, 3), faces as int64 (m, 3)), or ClosestPointError saying what
+    is wrong with them."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise ClosestPointError(f"vertices must be (n, 3), got {v.shape}")
+    if f.ndim != 2 or f.shape[1] != 3 or not np.issubdtype(f.dtype, np.integer):
+        raise ClosestPointError(f"faces must be (m, 3) integers, got {f.shape} {f.dtype}")
+    if len(f) == 0:
+        raise ClosestPointError("mesh has no faces")
+    if f.min() < 0 or f.max() >= len(v):
+        raise ClosestPointError("face index out of range")
+    if not np.isfinite(v).all():
+        raise ClosestPointError("vertices contain NaN or infinity")
+    return v, f.astype(np.int64)
 
 
 _CACHE: "weakref.WeakKeyDictionary[TriMesh, ClosestPointIndex]" = weakref.WeakKeyDictionary()

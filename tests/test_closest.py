@@ -199,6 +199,8 @@ def test_a_refitted_tree_answers_as_a_new_one():
         ClosestPointIndex.refitted(moved, f[:-1], idx.tree)
     with pytest.raises(ClosestPointError):
         ClosestPointIndex.refitted(np.full_like(v, np.nan), f, idx.tree)
+    with pytest.raises(ClosestPointError):                 # checked as a new index's faces
+        ClosestPointIndex.refitted(moved, f + len(v), idx.tree)
 
 
 def test_one_tree_per_owner():
