@@ -3,13 +3,9 @@
 Build: :mod:`core.bvh` (leaves of at most ``LEAF_SIZE`` triangles), then the triangles'
 corners copied in leaf order so a leaf reads contiguous memory.
 
-Query (``prange`` over blocks of points): depth-first traversal with an explicit stack per
-block, the nearer child first, subtrees pruned by their box distance against the best squared
-distance so far (initially ``max_distance²``), exact point–triangle closest points
-(:mod:`core.point_triangle`). Degenerate (zero-area) triangles fall back to the nearest of
-their three edges (flagged at build: squared sine of the angle at a corner ≤ 1e-20). Results
-do not depend on the thread count: each point's traversal is sequential and deterministic, so
-ties between triangles always resolve the same way.
+Query: :mod:`core.bvh_query` (the tree's traversal, in parallel over blocks of points).
+Degenerate (zero-area) triangles fall back to the nearest of their three edges (flagged at
+build: squared sine of the angle at a corner ≤ 1e-20).
 """
 from __future__ import annotations
 
@@ -17,16 +13,13 @@ import weakref
 
 import numba
 import numpy as np
-from numba import prange
 
 from .bvh import build_bvh, refit_bvh
+from .bvh_query import query_nearest
 from .checks import as_points, per_point_distance
-from .runtime.jit import kernel
 from .mesh import TriMesh
-from .point_triangle import closest_on_triangle
 
 LEAF_SIZE = 4
-_STACK = 128          # > tree depth (≈ log2(m / LEAF_SIZE) + a few for duplicate centroids)
 _BLOCK = 256          # points per parallel work item
 
 
@@ -34,91 +27,6 @@ class ClosestPointError(ValueError):
     """Bad input for closest-point queries (shapes, NaNs, negative distances, empty mesh)."""
 
 
-@kernel(cache=True)
-def _box_d2(px, py, pz, lo, hi, nd):  # pragma: no cover - compiled
-    d = 0.0
-    t = lo[nd, 0] - px
-    if t > 0.0:
-        d += t * t
-    t = px - hi[nd, 0]
-    if t > 0.0:
-        d += t * t
-    t = lo[nd, 1] - py
-    if t > 0.0:
-        d += t * t
-    t = py - hi[nd, 1]
-    if t > 0.0:
-        d += t * t
-    t = lo[nd, 2] - pz
-    if t > 0.0:
-        d += t * t
-    t = pz - hi[nd, 2]
-    if t > 0.0:
-        d += t * t
-    return d
-
-
-@kernel(cache=True)
-def _query_block(s0, s1, pts, md2, lo, hi, child, start, count, A, B, C, flat, fid,
-                 out_p, out_f, out_d2):  # pragma: no cover - compiled
-    """Points s0..s1-1, sequentially, with one explicit stack (allocated here, per block)."""
-    st = np.empty(_STACK, np.int64)
-    sd = np.empty(_STACK)
-    for i in range(s0, s1):
-        px, py, pz = pts[i, 0], pts[i, 1], pts[i, 2]
-        best = md2[i]
-        bf = -1
-        bx, by, bz = np.nan, np.nan, np.nan
-        top = 0
-        d0 = _box_d2(px, py, pz, lo, hi, 0)
-        if d0 <= best:
-            st[0], sd[0] = 0, d0
-            top = 1
-        while top > 0:
-            top -= 1
-            nd = st[top]
-            if sd[top] > best:
-                continue
-            cnt = count[nd]
-            if cnt > 0:
-                for k in range(start[nd], start[nd] + cnt):
-                    x, y, z, d2 = closest_on_triangle(px, py, pz, A, B, C, flat, k)
-                    if d2 < best or (bf < 0 and d2 <= best):
-                        best, bf, bx, by, bz = d2, k, x, y, z
-            else:
-                c = child[nd]
-                dl = _box_d2(px, py, pz, lo, hi, c)
-                dr = _box_d2(px, py, pz, lo, hi, c + 1)
-                if dl <= dr:   # push the farther one first: the nearer is popped next
-                    if dr <= best:
-                        st[top], sd[top] = c + 1, dr
-                        top += 1
-                    if dl <= best:
-                        st[top], sd[top] = c, dl
-                        top += 1
-                else:
-                    if dl <= best:
-                        st[top], sd[top] = c, dl
-                        top += 1
-                    if dr <= best:
-                        st[top], sd[top] = c + 1, dr
-                        top += 1
-        out_p[i, 0], out_p[i, 1], out_p[i, 2] = bx, by, bz
-        out_f[i] = fid[bf] if bf >= 0 else -1
-        out_d2[i] = best if bf >= 0 else np.inf
-
-
-@kernel(cache=True, parallel=True)
-def _query(pts, md2, lo, hi, child, start, count, A, B, C, flat, fid, block,
-           out_p, out_f, out_d2):  # pragma: no cover - compiled
-    n = pts.shape[0]
-    nb = (n + block - 1) // block
-    for b in prange(nb):
-        _query_block(b * block, min(n, (b + 1) * block), pts, md2, lo, hi, child, start, count,
-                     A, B, C, flat, fid, out_p, out_f, out_d2)
-
-
-# ------------------------------------------------------------------------------- API
 class ClosestPointIndex:
     """BVH over a triangle mesh for exact closest-point queries; build once, query often.
 
@@ -195,7 +103,7 @@ class ClosestPointIndex:
             if threads:  # numba's thread count is thread-local: restoring it is safe
                 numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
             try:
-                _query(np.ascontiguousarray(q), md * md * (1 + 1e-14), *self._nodes, self._A, self._B, self._C,
+                query_nearest(np.ascontiguousarray(q), md * md * (1 + 1e-14), *self._nodes, self._A, self._B, self._C,
                        self._flat, self._fid, _BLOCK, out_p, out_f, out_d2)
             finally:
                 numba.set_num_threads(old)
