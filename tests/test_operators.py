@@ -299,7 +299,7 @@ def test_report_image(scene):
     bpy.context.view_layer.objects.active = bpy.data.objects["rock_micromesh"]
     assert bpy.ops.micromesh.open_report() == {"FINISHED"}
     img = bpy.data.images["rock_micromesh_report"]
-    from micromesh.core.report import SIZE
+    from micromesh.core.report_figure import SIZE
 
     assert tuple(img.size) == SIZE
     res = bpy.data.objects["rock_micromesh"]

@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from core.construct import construct, staged_baseline
-from core.report import ERROR_SCALE, LEVEL_COLORS, SIZE, make_report
+from core.level_colors import LEVEL_COLORS
+from core.report import make_report
+from core.report_figure import ERROR_SCALE, SIZE
 from test_construct import scene, small  # noqa: F401  (the fixture)
 
 
