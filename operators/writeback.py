@@ -17,6 +17,7 @@ import json
 import bpy
 import numpy as np
 
+from ..core.level_colors import LEVEL_COLORS as CORE_LEVEL_COLORS
 from ..core.micromesh import MicroMesh
 from ..core.outcome import Outcome, pack, unpack
 from . import bl_mesh
@@ -24,10 +25,8 @@ from .preview import add_preview_modifier
 
 DATA_KEY = "micromesh_data"
 REPORT_KEY = "micromesh_report_png"
-# One colour per level 0..5 (blue -> red), linear RGBA.
-LEVEL_COLORS = np.array([[0.05, 0.10, 0.60, 1], [0.05, 0.45, 0.80, 1], [0.10, 0.70, 0.30, 1],
-                         [0.85, 0.80, 0.10, 1], [0.90, 0.40, 0.05, 1], [0.80, 0.05, 0.05, 1]],
-                        dtype=np.float32)
+# The colours of levels 0..5 (the report's, core.level_colors), linear RGBA.
+LEVEL_COLORS = np.c_[CORE_LEVEL_COLORS[:6], np.ones(6)].astype(np.float32)
 
 
 # ---------------------------------------------------------------- attributes
