@@ -84,6 +84,15 @@ def lp_bounds(mm: MicroMesh, min_scale: float = 1e-6) -> DirectionBounds:
     return DirectionBounds(low.x, np.maximum(high.x - low.x, min_scale))
 
 
+def blended(a: DirectionBounds, b: DirectionBounds, alpha: float) -> DirectionBounds:
+    """(1 − alpha)·a + alpha·b, lower and upper ends alike. Where ``a`` and ``b`` both hold
+    every micro-vertex so does the blend (its interpolated bounds are the same blend of
+    theirs), and its shell lies between theirs."""
+    lo = (1.0 - alpha) * a.bias + alpha * b.bias
+    hi = (1.0 - alpha) * (a.bias + a.scale) + alpha * (b.bias + b.scale)
+    return DirectionBounds(lo, hi - lo)
+
+
 def normalized_values(mm: MicroMesh, bounds: DirectionBounds, clip: bool = True) -> np.ndarray:
     """(n,) value t per micro-vertex with lerp(P + D·b) + lerp(D·s)·t closest (least squares
     along lerp(D·s)) to its position; clipped to [0, 1] unless ``clip`` is False (then values

@@ -7,7 +7,7 @@ from hypothesis import given, settings, strategies as st
 
 from shapes import icosphere
 from core.bounds import (
-    BoundsError, DirectionBounds, lp_bounds, micromesh_shell_volume, normalized_values,
+    BoundsError, DirectionBounds, blended, lp_bounds, micromesh_shell_volume, normalized_values,
     prismoid_volumes, shell_volume, tight_bounds,
 )
 from core.micromesh import MicroMesh
@@ -113,6 +113,27 @@ def test_lp_bounds_contain_every_value_in_a_thinner_shell(seed):
     lp, tight = lp_bounds(flat), tight_bounds(flat)
     assert normalized_values(flat, lp, clip=False).max() <= 1 + 1e-6
     assert micromesh_shell_volume(flat, lp) < 0.5 * micromesh_shell_volume(flat, tight)
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2 ** 31 - 1), alpha=st.floats(0.0, 1.0))
+def test_blended_bounds_hold_every_value_between_the_two_shells(seed, alpha):
+    """A blend of the tight and the least-volume bounds still holds every micro-vertex under
+    parallel directions; its shell lies between theirs; the ends are the two bounds."""
+    rng = np.random.default_rng(seed)
+    m = icosphere(1)
+    mm = MicroMesh.flat(m, rng.integers(0, 3, m.n_faces), np.tile(rng.standard_normal(3),
+                                                                     (m.n_vertices, 1)))
+    mm = mm.with_displacements(rng.standard_normal(mm.n_vertices) * 0.1)
+    tight, lp = tight_bounds(mm), lp_bounds(mm)
+    b = blended(tight, lp, alpha)
+    t = normalized_values(mm, b, clip=False)
+    assert t.min() >= -1e-6 and t.max() <= 1 + 1e-6
+    shells = [micromesh_shell_volume(mm, x) for x in (lp, b, tight)]
+    assert shells[0] * (1 - 1e-9) <= shells[1] <= shells[2] * (1 + 1e-9)
+    for end, alpha_end in ((tight, 0.0), (lp, 1.0)):
+        e = blended(tight, lp, alpha_end)
+        assert np.allclose(e.bias, end.bias) and np.allclose(e.scale, end.scale)
 
 
 def test_vertex_normals_values_mostly_inside_and_clipped():

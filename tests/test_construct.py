@@ -100,19 +100,45 @@ def test_least_volume_bounds_thin_the_shell(scene):
     assert {"bounds", "fit"} <= set(least.timings)
 
 
-def test_least_volume_bounds_are_refused_where_they_hurt(scene, monkeypatch):
-    """Bounds that clip most micro-vertices (a stand-in for a refit that loses detail) raise
-    the image error: the tight bounds' fold stays, and the run says so."""
+def _clipping_bounds(monkeypatch):
+    """Least-volume bounds replaced by bounds that clip most micro-vertices (a stand-in for
+    a refit that loses detail): they raise the image error."""
     import core.construct.finalise as fin
     from core.bounds import DirectionBounds
 
-    ref, base = scene
     monkeypatch.setattr(fin, "lp_bounds", lambda mm: DirectionBounds(
         np.zeros(mm.base.n_vertices), np.full(mm.base.n_vertices, 1e-6)))
+    return fin
+
+
+def test_least_volume_bounds_are_refused_where_they_hurt(scene, monkeypatch):
+    """Where no try keeps the image error within 1 % the tight bounds' fold stays, and the
+    run says so."""
+    fin = _clipping_bounds(monkeypatch)
+    monkeypatch.setattr(fin, "_BLENDS", (1.0,))
+    ref, base = scene
     r = construct(ref, base, None, small())
     note = r.metrics["lp_bounds"]
-    assert not note["kept"] and note["image_error_after"] > 1.01 * note["image_error_before"]
+    assert not note["kept"] and note["blend"] is None
+    assert note["image_error_after"] > 1.01 * note["image_error_before"]
+    assert [t[0] for t in note["tries"]] == [1.0]
     assert np.isclose(r.metrics["shell_volume"], note["shell_before"], rtol=1e-6)
+
+
+def test_a_blend_of_the_bounds_is_tried_where_the_least_volume_ones_hurt(scene, monkeypatch):
+    """Where the least-volume bounds raise the image error, blends of them with the tight
+    bounds are tried in turn (``_BLENDS``); the first within 1 % is kept (here the half
+    blend: the refit recovers what it clips), with what it measured, and its shell is the
+    result's."""
+    fin = _clipping_bounds(monkeypatch)
+    ref, base = scene
+    r = construct(ref, base, None, small())
+    note = r.metrics["lp_bounds"]
+    assert [t[0] for t in note["tries"]] == list(fin._BLENDS[:2])
+    assert note["tries"][0][1] > 1.01 and note["tries"][1][1] <= 1.01
+    assert note["kept"] and note["blend"] == fin._BLENDS[1]
+    assert note["shell_after"] < note["shell_before"]
+    assert np.isclose(r.metrics["shell_volume"], note["shell_after"], rtol=1e-6)
 
 
 def test_subdivision_keeps_surface(scene):

@@ -1,11 +1,13 @@
 """The metrics of a finished micro-mesh (method §7), in the unit-sphere frame."""
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 import torch
 
 from ..bounds import DirectionBounds, shell_volume, tight_bounds
-from ..cameras import fibonacci_cameras
+from ..cameras import Cameras, fibonacci_cameras
 from ..io.micromesh_export import quantization_error
 from ..lod import effective_micro_triangles
 from ..mesh import TriMesh
@@ -14,6 +16,28 @@ from ..micromesh import MicroMesh
 from ..render import reference_images, render
 from ..settings import ConstructSettings
 from .frame import device as torch_device
+
+
+def eval_cameras(s: ConstructSettings) -> Cameras:
+    """The views of the metrics' PSNR: ``s.eval_views`` Fibonacci views at
+    ``s.eval_resolution`` (unit frame)."""
+    return fibonacci_cameras(s.eval_views, s.camera_radius, s.fov_y_deg, s.eval_resolution)
+
+
+def squared_error(X: torch.Tensor, T: torch.Tensor, cams: Cameras, s: ConstructSettings,
+                  reference: Callable[[int, int], torch.Tensor]) -> tuple[float, int]:
+    """(sum of squared differences, number of values) between the ``s.shading`` renders of
+    the triangles ``T`` (m, 3) over ``X`` (n, 3) from ``cams`` and ``reference(b, e)``, the
+    (e − b, H, W, 3) reference images of views b to e − 1 (four views at a time)."""
+    se, n = 0.0, 0
+    with torch.no_grad():
+        for b in range(0, len(cams), 4):
+            e = min(b + 4, len(cams))
+            img = render(X, T, cams.subset(np.arange(b, e)), kind=s.shading,
+                         antialias=s.antialias)
+            se += float(((img - reference(b, e).to(img.dtype)) ** 2).double().sum())
+            n += img.numel()
+    return se, n
 
 
 def evaluate(mm_unit: MicroMesh, reference_unit: TriMesh, s: ConstructSettings,
@@ -27,21 +51,20 @@ def evaluate(mm_unit: MicroMesh, reference_unit: TriMesh, s: ConstructSettings,
     tess = mm_unit.tessellate()
     base = mm_unit.base
     out: dict = {}
-    cams = fibonacci_cameras(s.eval_views, s.camera_radius, s.fov_y_deg, s.eval_resolution)
+    cams = eval_cameras(s)
     X = torch.as_tensor(tess.vertices, dtype=torch.float32, device=device)
     T = torch.as_tensor(tess.triangles, dtype=torch.int64, device=device)
     if ref_images is None:
         rv = torch.as_tensor(reference_unit.vertices, dtype=torch.float32, device=device)
         rf = torch.as_tensor(reference_unit.faces, dtype=torch.int64, device=device)
-    se, n = 0.0, 0
-    with torch.no_grad():
-        for b in range(0, len(cams), 4):
-            sub = cams.subset(np.arange(b, min(b + 4, len(cams))))
-            img = render(X, T, sub, kind=s.shading, antialias=s.antialias)
-            ref = (ref_images[b:b + 4] if ref_images is not None
-                   else reference_images(rv, rf, sub, antialias=s.antialias, kind=s.shading))
-            se += float(((img - ref) ** 2).double().sum())
-            n += img.numel()
+
+        def ref(b: int, e: int) -> torch.Tensor:
+            return reference_images(rv, rf, cams.subset(np.arange(b, e)),
+                                    antialias=s.antialias, kind=s.shading)
+    else:
+        def ref(b: int, e: int) -> torch.Tensor:
+            return ref_images[b:e]
+    se, n = squared_error(X, T, cams, s, ref)
     mse = se / max(n, 1)
     out["psnr"] = float(10 * np.log10(1.0 / mse)) if mse > 0 else float("inf")
     out["shell_volume"] = shell_volume(base.vertices, base.faces, mm_unit.directions, bounds_unit)

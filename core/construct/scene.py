@@ -12,6 +12,7 @@ from ..mesh import TriMesh
 from ..micromesh import MicroMesh
 from ..render import pixel_error, rasterize, reference_images
 from ..settings import ConstructSettings
+from .evaluate import eval_cameras, squared_error
 
 
 class Scene:
@@ -55,6 +56,17 @@ def face_errors(mm: MicroMesh, scene: Scene, cams: Cameras, key, s: ConstructSet
         sums += face_error_sums(err.cpu().numpy(), ras.tri_id.cpu().numpy(),
                                 mm.topology.triangle_face, nf)
     return sums
+
+
+def image_error(mm: MicroMesh, scene: Scene, s: ConstructSettings) -> float:
+    """The summed squared pixel error of ``mm`` from the metrics' views
+    (``evaluate.eval_cameras``): what the report's PSNR measures, the reference images cached
+    (key "eval")."""
+    cams = eval_cameras(s)
+    target = scene.images(cams, "eval")
+    X = torch.as_tensor(mm.micro_vertex_positions(), dtype=torch.float32, device=scene.device)
+    T = torch.as_tensor(mm.topology.triangles, dtype=torch.int64, device=scene.device)
+    return squared_error(X, T, cams, s, lambda b, e: target[b:e])[0]
 
 
 def bake(mm: MicroMesh, reference: TriMesh, max_distance: float) -> np.ndarray:
