@@ -127,7 +127,7 @@ def test_least_volume_bounds_are_refused_where_they_hurt(scene, monkeypatch):
 
 def test_a_blend_of_the_bounds_is_tried_where_the_least_volume_ones_hurt(scene, monkeypatch):
     """Where the least-volume bounds raise the image error, blends of them with the tight
-    bounds are tried in turn (``_BLENDS``); the first within 1 % is kept (here the half
+    bounds are tried in turn (``_BLENDS``); the first within 1 % is kept (here the first
     blend: the refit recovers what it clips), with what it measured, and its shell is the
     result's."""
     fin = _clipping_bounds(monkeypatch)

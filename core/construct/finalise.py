@@ -67,7 +67,7 @@ def finalise(run: RunState, mm: MicroMesh, reference: TriMesh, base: TriMesh,
 # rises by at most this factor (0.04 dB); the least-volume bounds are tried first, then
 # these blends of them with the tight bounds (``core.bounds.blended``), until one is kept.
 _IMAGE_TOLERANCE = 1.01
-_BLENDS = (1.0, 0.5, 0.25)
+_BLENDS = (1.0, 0.75, 0.5, 0.25)
 
 
 def folded(run: RunState, mm: MicroMesh, samples, error: float | None = None) -> MicroMesh:
