@@ -30,9 +30,14 @@ class Scene:
         self._images: dict[tuple, torch.Tensor] = {}
 
     def images(self, cams: Cameras, key) -> torch.Tensor:
+        """(B, H, W, 3) reference images from ``cams``, rendered once per ``key``, four views
+        at a time (the renderer's buffers for 24 views at 512² of a 2M-face reference are
+        larger than the images)."""
         if key not in self._images:
-            self._images[key] = reference_images(self.rv, self.rf, cams, antialias=self.antialias,
-                                                 kind=self.shading)
+            self._images[key] = torch.cat([
+                reference_images(self.rv, self.rf, cams.subset(np.arange(b, min(b + 4, len(cams)))),
+                                 antialias=self.antialias, kind=self.shading)
+                for b in range(0, len(cams), 4)])
         return self._images[key]
 
 
