@@ -88,6 +88,16 @@ def test_tight_bounds_contain_values(seed):
     assert np.allclose(rec, mm.micro_vertex_positions(), atol=1e-12)
 
 
+def _parallel_micromesh(seed: int) -> MicroMesh:
+    """A micro-mesh on an icosphere with random levels 0-2, one random direction for every
+    vertex and random displacements."""
+    rng = np.random.default_rng(seed)
+    m = icosphere(1)
+    mm = MicroMesh.flat(m, rng.integers(0, 3, m.n_faces), np.tile(rng.standard_normal(3),
+                                                                     (m.n_vertices, 1)))
+    return mm.with_displacements(rng.standard_normal(mm.n_vertices) * 0.1)
+
+
 @settings(max_examples=10, deadline=None)
 @given(seed=st.integers(0, 2 ** 31 - 1))
 def test_lp_bounds_contain_every_value_in_a_thinner_shell(seed):
@@ -95,11 +105,8 @@ def test_lp_bounds_contain_every_value_in_a_thinner_shell(seed):
     (values in [0, 1]), their shell is no thicker than the tight bounds' and, with a bump in
     a spike near one corner of a face, far thinner (tight bounds give its height to all three
     vertices of the faces around it, the programme mostly to the corner nearest it)."""
-    rng = np.random.default_rng(seed)
-    m = icosphere(1)
-    mm = MicroMesh.flat(m, rng.integers(0, 3, m.n_faces), np.tile(rng.standard_normal(3),
-                                                                     (m.n_vertices, 1)))
-    mm = mm.with_displacements(rng.standard_normal(mm.n_vertices) * 0.1)
+    mm = _parallel_micromesh(seed)
+    m = mm.base
     lp, tight = lp_bounds(mm), tight_bounds(mm)
     t = normalized_values(mm, lp, clip=False)
     assert t.min() >= -1e-6 and t.max() <= 1 + 1e-6
@@ -120,11 +127,7 @@ def test_lp_bounds_contain_every_value_in_a_thinner_shell(seed):
 def test_blended_bounds_hold_every_value_between_the_two_shells(seed, alpha):
     """A blend of the tight and the least-volume bounds still holds every micro-vertex under
     parallel directions; its shell lies between theirs; the ends are the two bounds."""
-    rng = np.random.default_rng(seed)
-    m = icosphere(1)
-    mm = MicroMesh.flat(m, rng.integers(0, 3, m.n_faces), np.tile(rng.standard_normal(3),
-                                                                     (m.n_vertices, 1)))
-    mm = mm.with_displacements(rng.standard_normal(mm.n_vertices) * 0.1)
+    mm = _parallel_micromesh(seed)
     tight, lp = tight_bounds(mm), lp_bounds(mm)
     b = blended(tight, lp, alpha)
     t = normalized_values(mm, b, clip=False)
