@@ -2,7 +2,7 @@
 triangles well shaped, does not depend on the scale, and reports where it stopped short."""
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from core import primitives
@@ -87,6 +87,8 @@ def test_open_mesh_keeps_its_holes():
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(genus=st.integers(0, 3), parts=st.integers(1, 3), holes=st.integers(0, 3),
        ratio=st.floats(0.005, 0.5), seed=st.integers(0, 10_000))
+# two holes through one vertex of a sphere (found by CI): a pinch
+@example(genus=0, parts=2, holes=3, ratio=0.03125, seed=5302)
 def test_topology_is_kept_property(genus, parts, holes, ratio, seed):
     rng = np.random.default_rng(seed)
     pieces = [TriMesh(*primitives.holed_plate(genus, 2))]

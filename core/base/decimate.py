@@ -126,7 +126,10 @@ def _run(V, F, Q, W, isb, locked, valive, falive, head, tail, nxt, stamp, mark, 
 
 
 def locked_vertices(mesh: TriMesh) -> np.ndarray:
-    """Vertices that may not move: on non-manifold edges, or where several fans of faces meet."""
+    """Vertices that may not move: on non-manifold edges, where several fans of faces meet
+    (a pinch: two holes through one vertex), and next to a pinch. An edge between two of them
+    never collapses, so no edge at a pinch does: the link condition assumes one fan, and
+    collapsing a neighbour into a pinch could close one of its holes."""
     locked = np.zeros(mesh.n_vertices, bool)
     locked[mesh.edges[mesh.nonmanifold_edges].reshape(-1)] = True
     bnd = mesh.edges[mesh.boundary_edges].reshape(-1)
@@ -134,9 +137,11 @@ def locked_vertices(mesh: TriMesh) -> np.ndarray:
     ptr, _ = mesh.vertex_faces_csr
     nbr, _ = mesh.vertex_neighbors_csr
     faces, valence = np.diff(ptr), np.diff(nbr)
-    locked |= nb > 2
-    locked |= faces < valence - (nb > 0)        # a closed fan has valence faces, an open one one fewer
-    return locked
+    # a closed fan has valence faces, an open one one fewer
+    pinch = (nb > 2) | (faces < valence - (nb > 0))
+    e = mesh.edges
+    locked[e[pinch[e[:, 0]] | pinch[e[:, 1]]].reshape(-1)] = True
+    return locked | pinch
 
 
 def decimate(mesh: TriMesh, target_faces: int, max_error: float = np.inf,
