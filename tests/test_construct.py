@@ -461,21 +461,3 @@ def test_non_manifold_edges_are_said(scene):
     r = staged_baseline(fin, base, 1, small())
     assert any("1 non-manifold edges" in w for w in r.metrics["warnings"]), r.metrics["warnings"]
 
-
-def test_scene_images_are_rendered_in_chunks_as_all_at_once(scene):
-    """The cached reference images (rendered four views at a time, for memory) are those of
-    one call over every view, bit for bit."""
-    import torch
-
-    from core.cameras import fibonacci_cameras
-    from core.construct.scene import Scene
-    from core.render import reference_images
-
-    ref, _ = scene
-    unit = TriMesh((ref.vertices - 1.0) / 2.0, ref.faces)
-    sc = Scene(unit, None, torch.device("cpu"), True, "flat")
-    cams = fibonacci_cameras(10, 3.0, 40.0, 64)
-    got = sc.images(cams, "k")
-    assert got.shape == (10, 64, 64, 3) and float(got.max()) > 0
-    assert torch.equal(got, reference_images(sc.rv, sc.rf, cams, antialias=True, kind="flat"))
-    assert sc.images(cams, "k") is got                 # cached per key

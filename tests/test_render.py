@@ -124,3 +124,18 @@ def test_interpolated_positions_lie_on_the_pixel_rays(sphere):
     depth = render(v, f, cams, kind="depth", raster=r, antialias=False)[..., 0]
     assert torch.allclose(clip[..., 3][m], depth[m], atol=1e-9)
     assert (pos[~m] == 0).all()
+
+
+@pytest.mark.parametrize("kind", ["flat", "shaded"])
+def test_reference_images_a_few_views_at_a_time_are_one_call_over_all(kind):
+    """The reference images are rendered a few views per call (the rasteriser's buffers):
+    bit for bit the images of one render over every view, in view order."""
+    from core.render.api import _VIEWS_PER_CALL
+
+    v, f = icosphere(3, noise=0.05)
+    v, f = torch.as_tensor(v, dtype=torch.float32), torch.as_tensor(f)
+    cams = fibonacci_cameras(2 * _VIEWS_PER_CALL + 1, 3.0, 40.0, 48)
+    got = reference_images(v, f, cams, kind=kind)
+    assert got.shape == (len(cams), 48, 48, 3) and float(got.max()) > 0
+    with torch.no_grad():
+        assert torch.equal(got, render(v, f, cams, kind=kind))

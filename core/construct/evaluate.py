@@ -1,8 +1,6 @@
 """The metrics of a finished micro-mesh (method §7), in the unit-sphere frame."""
 from __future__ import annotations
 
-from typing import Callable
-
 import numpy as np
 import torch
 
@@ -25,17 +23,17 @@ def eval_cameras(s: ConstructSettings) -> Cameras:
 
 
 def squared_error(X: torch.Tensor, T: torch.Tensor, cams: Cameras, s: ConstructSettings,
-                  reference: Callable[[int, int], torch.Tensor]) -> tuple[float, int]:
+                  reference: torch.Tensor) -> tuple[float, int]:
     """(sum of squared differences, number of values) between the ``s.shading`` renders of
-    the triangles ``T`` (m, 3) over ``X`` (n, 3) from ``cams`` and ``reference(b, e)``, the
-    (e − b, H, W, 3) reference images of views b to e − 1 (four views at a time)."""
+    the triangles ``T`` (m, 3) over ``X`` (n, 3) from ``cams`` and the (B, H, W, 3)
+    ``reference`` images of those views (rendered four views at a time)."""
     se, n = 0.0, 0
     with torch.no_grad():
         for b in range(0, len(cams), 4):
             e = min(b + 4, len(cams))
             img = render(X, T, cams.subset(np.arange(b, e)), kind=s.shading,
                          antialias=s.antialias)
-            se += float(((img - reference(b, e).to(img.dtype)) ** 2).double().sum())
+            se += float(((img - reference[b:e].to(img.dtype)) ** 2).double().sum())
             n += img.numel()
     return se, n
 
@@ -55,16 +53,11 @@ def evaluate(mm_unit: MicroMesh, reference_unit: TriMesh, s: ConstructSettings,
     X = torch.as_tensor(tess.vertices, dtype=torch.float32, device=device)
     T = torch.as_tensor(tess.triangles, dtype=torch.int64, device=device)
     if ref_images is None:
-        rv = torch.as_tensor(reference_unit.vertices, dtype=torch.float32, device=device)
-        rf = torch.as_tensor(reference_unit.faces, dtype=torch.int64, device=device)
-
-        def ref(b: int, e: int) -> torch.Tensor:
-            return reference_images(rv, rf, cams.subset(np.arange(b, e)),
-                                    antialias=s.antialias, kind=s.shading)
-    else:
-        def ref(b: int, e: int) -> torch.Tensor:
-            return ref_images[b:e]
-    se, n = squared_error(X, T, cams, s, ref)
+        ref_images = reference_images(
+            torch.as_tensor(reference_unit.vertices, dtype=torch.float32, device=device),
+            torch.as_tensor(reference_unit.faces, dtype=torch.int64, device=device), cams,
+            antialias=s.antialias, kind=s.shading)
+    se, n = squared_error(X, T, cams, s, ref_images)
     mse = se / max(n, 1)
     out["psnr"] = float(10 * np.log10(1.0 / mse)) if mse > 0 else float("inf")
     out["shell_volume"] = shell_volume(base.vertices, base.faces, mm_unit.directions, bounds_unit)

@@ -30,14 +30,9 @@ class Scene:
         self._images: dict[tuple, torch.Tensor] = {}
 
     def images(self, cams: Cameras, key) -> torch.Tensor:
-        """(B, H, W, 3) reference images from ``cams``, rendered once per ``key``, four views
-        at a time (the renderer's buffers for 24 views at 512² of a 2M-face reference are
-        larger than the images)."""
         if key not in self._images:
-            self._images[key] = torch.cat([
-                reference_images(self.rv, self.rf, cams.subset(np.arange(b, min(b + 4, len(cams)))),
-                                 antialias=self.antialias, kind=self.shading)
-                for b in range(0, len(cams), 4)])
+            self._images[key] = reference_images(self.rv, self.rf, cams, antialias=self.antialias,
+                                                 kind=self.shading)
         return self._images[key]
 
 
@@ -71,7 +66,7 @@ def image_error(mm: MicroMesh, scene: Scene, s: ConstructSettings) -> float:
     target = scene.images(cams, "eval")
     X = torch.as_tensor(mm.micro_vertex_positions(), dtype=torch.float32, device=scene.device)
     T = torch.as_tensor(mm.topology.triangles, dtype=torch.int64, device=scene.device)
-    return squared_error(X, T, cams, s, lambda b, e: target[b:e])[0]
+    return squared_error(X, T, cams, s, target)[0]
 
 
 def bake(mm: MicroMesh, reference: TriMesh, max_distance: float) -> np.ndarray:
