@@ -50,6 +50,11 @@ class Cameras:
         """Same poses and fields of view, another image size (aspect must match to keep fov)."""
         return Cameras(self.view, self.proj, int(width), int(height if height else width))
 
+    def at_resolution(self, resolution: int) -> "Cameras":
+        """The same cameras with their longer side ``resolution`` pixels (8 at least)."""
+        k = resolution / max(self.width, self.height)
+        return self.with_resolution(max(8, round(self.width * k)), max(8, round(self.height * k)))
+
     def subset(self, index) -> "Cameras":
         idx = np.atleast_1d(np.asarray(index))
         return Cameras(self.view[idx], self.proj[idx], self.width, self.height)

@@ -84,7 +84,8 @@ def report_data(metrics: dict, history: dict, levels: np.ndarray, settings_chang
     m = {k: metrics.get(k) for k, _, _ in ROWS if k in metrics}
     if metrics.get("bytes"):
         m["compression"] = input_bytes / metrics["bytes"]
-    for key in ("residual_lod", "base_fit", "direction_fit", "fit_passes", "lp_bounds"):
+    for key in ("residual_lod", "base_fit", "direction_fit", "fit_passes", "lp_bounds",
+                "polish"):
         if isinstance(metrics.get(key), dict):
             m[key] = dict(metrics[key])
     return {"metrics": m, "levels_hist": np.bincount(levels, minlength=6).tolist(),

@@ -86,6 +86,8 @@ class ConstructSettings:
                                      # result is what a .bary file holds (core.bounds.baked)
     lp_bounds: bool = True           # fold the least-volume bounds first and fit again
                                      # (core.bounds.lp_bounds; ours): a thinner shell
+    polish_steps: int = 40           # then image steps on the values within those bounds
+                                     # (core.construct.polish; ours; 0: none)
 
     # losses
     w_render: float = 1.0
@@ -175,7 +177,7 @@ PRESETS: dict[str, dict] = {
     "paper": dict(iterations=1600, subdivide_at=(50, 150, 400, 800), views_per_iter=24,
                   train_resolution=512, lod_resolution=512, max_level=4, freeze_base_at=1200,
                   lr_base=1e-3, lr_disp=1e-3, shading="shaded", init_new_levels="interpolate",
-                  final_fit=False, lod="in_optim", paper_losses=True),
+                  final_fit=False, polish_steps=0, lod="in_optim", paper_losses=True),
 }
 
 

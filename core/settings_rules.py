@@ -35,6 +35,7 @@ RANGES: dict[str, tuple[float, float, bool, bool]] = {
     "fit_slopes": (0, 1e3, True, False),
     "fit_base_stiffness": (0, 1e6, True, False),
     "fit_passes": (0, 100, True, True),
+    "polish_steps": (0, 10 ** 5, True, True),
     "residual_lod": (0, 1, True, True),
     "w_render": (0, INF, True, False),
     "w_sv": (0, INF, True, False),

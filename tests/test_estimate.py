@@ -17,7 +17,8 @@ def test_the_estimate_grows_with_the_input_and_the_budget():
     small, big = estimate(100_000, s, speed=1.0), estimate(1_000_000, s, speed=1.0)
     assert 0 < small.seconds < big.seconds and 0 < small.peak_bytes < big.peak_bytes
     assert small.micro_triangles == 200_000 and big.micro_triangles == 2_000_000
-    assert set(small.phases) == {"input", "base", "optimize", "fit", "metrics"}
+    assert set(small.phases) == {"input", "base", "optimize", "fit", "polish", "metrics"}
+    assert estimate(100_000, preset("paper"), speed=1.0).phases["polish"] == 0
     half = estimate(1_000_000, preset("default", budget_ratio=1.0), speed=1.0)
     assert half.peak_bytes < big.peak_bytes and half.micro_triangles == 1_000_000
     assert "GB of memory for 2,000,000 micro-triangles" in big.text()

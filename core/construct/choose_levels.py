@@ -83,7 +83,7 @@ def _post_process(run: RunState, mm: MicroMesh) -> MicroMesh:
     for lv in range(max(0, s.min_level - 1), top + 1):
         run.check_stop()
         m = mm if (mm.levels == lv).all() else mm.with_levels(np.full(nf, lv))
-        errs[lv] = face_errors(m, run.scene, run.lod_cams, "lod", s, run.ref_tree)
+        errs[lv] = face_errors(m, run.scene, run.lod_cams, s, run.ref_tree)
     gains = {lv: relative_gain(errs[lv - 1], errs[lv]) for lv in errs if lv - 1 in errs}
     run.gains.update(gains)
     new = post_process_lod(gains, top, s.min_level, mm.base.face_neighbors_csr, s.tau_post)

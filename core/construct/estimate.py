@@ -83,6 +83,10 @@ def estimate(reference_faces: int, s: ConstructSettings, speed: float | None = N
               "base": _T_BASE_PER_FACE * reference_faces,
               "optimize": s.iterations * per_iter,
               "fit": _T_FIT_PER_MICRO * m if s.final_fit else 0.0,
+              # polishing: full micro-meshes at the metrics' resolution (until the deadline)
+              "polish": s.polish_steps * (_T_ITER_FIXED + _T_ITER_PER_MICRO * m +
+                                          _T_ITER_PER_PIXEL * s.views_per_iter *
+                                          s.eval_resolution ** 2),
               "metrics": _T_METRICS_PER_FACE * reference_faces if s.compute_metrics else 0.0}
     phases = {k: v / speed for k, v in phases.items()}
     seconds = _T_FIXED / speed + sum(phases.values())

@@ -4,8 +4,8 @@ fitted again (``choose_levels.residual_exchange``; kept only where that lowers t
 error), bounds folded into the base and the directions (what a file holds:
 ``core.bounds.baked``; those of least shell volume, or a blend of them with the tight ones,
 with the displacements fitted again under them, where the image error of the metrics' views
-rises by 1 % at most), metrics, and the result in the caller's
-frame."""
+rises by 1 % at most), the values polished against the images within those bounds
+(``polish``), metrics, and the result in the caller's frame."""
 from __future__ import annotations
 
 import time
@@ -22,6 +22,7 @@ from .choose_levels import final_levels
 from .evaluate import eval_cameras, evaluate
 from .fitting import fit_rounds, fitted
 from .frame import to_caller_frame
+from .polish import polished
 from .scene import image_error
 from .state import RunState
 from .types import ConstructResult
@@ -43,6 +44,11 @@ def finalise(run: RunState, mm: MicroMesh, reference: TriMesh, base: TriMesh,
         run.check_stop()
         run.announce("bounds")
         mm, bounds = folded(run, mm, samples, error), unit_bounds(mm.base.n_vertices)
+        if run.s.polish_steps > 0:
+            run.check_stop()
+            run.announce("polish")
+            with run.timer.phase("polish"):
+                mm = polished(run, mm)
     with run.timer.phase("finalize"):
         bounds = tight_bounds(mm) if bounds is None else bounds
     run.check_stop()
@@ -52,7 +58,7 @@ def finalise(run: RunState, mm: MicroMesh, reference: TriMesh, base: TriMesh,
         run.announce("metrics")
         with run.timer.phase("metrics"):
             metrics = evaluate(mm, run.scene.ref, run.s, bounds, run.device,
-                               run.scene.images(eval_cameras(run.s), "eval"))
+                               run.scene.images(eval_cameras(run.s)))
     metrics.update(time_s=construct_time, iterations=iterations, stopped_early=stopped_early,
                    fixed_levels=run.fixed is not None)
     out, b = to_caller_frame(mm, bounds, run.norm)

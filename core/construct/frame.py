@@ -171,9 +171,7 @@ def unit_cameras(cameras: Cameras | None, norm: Normalization, s: ConstructSetti
                  resolution: int) -> Cameras:
     if cameras is None:
         return fibonacci_cameras(s.n_views, s.camera_radius, s.fov_y_deg, resolution)
-    cams = cameras.transformed(similarity_matrix(norm))
-    k = resolution / max(cams.width, cams.height)
-    return cams.with_resolution(max(8, round(cams.width * k)), max(8, round(cams.height * k)))
+    return cameras.transformed(similarity_matrix(norm)).at_resolution(resolution)
 
 
 def to_caller_frame(mm: MicroMesh, bounds: DirectionBounds, norm: Normalization

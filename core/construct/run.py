@@ -79,8 +79,7 @@ def _setup(reference, base, cameras, s, dev, should_stop, fixed) -> RunState:
     ref_u = TriMesh(norm.apply(reference.vertices), reference.faces)
     base_u = TriMesh(norm.apply(base.vertices), base.faces)
     cams = unit_cameras(cameras, norm, s, s.train_resolution)
-    k = s.lod_resolution / max(cams.width, cams.height)
-    lod_cams = cams.with_resolution(max(8, round(cams.width * k)), max(8, round(cams.height * k)))
+    lod_cams = cams.at_resolution(s.lod_resolution)
     run = RunState(s, dev, norm, base_u, reference.n_faces, Scene(ref_u, cams, dev, s.antialias, s.shading),
                    lod_cams, should_stop or (lambda: False), fixed=fixed,
                    h=mean_edge_length(base_u.vertices, base_u.faces))
@@ -138,7 +137,7 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     t_setup = time.perf_counter()
     run = _setup(reference, base, cameras, s, dev, should_stop, fixed)
     run.progress = progress
-    run.finish_estimate_s = guess.phases["fit"] + guess.phases["metrics"]
+    run.finish_estimate_s = guess.phases["fit"] + guess.phases["polish"] + guess.phases["metrics"]
     if cameras is not None:
         warnings += check_views(run.scene.ref, run.scene.cams, dev)
     run.timer.times["setup"] = time.perf_counter() - t_setup
@@ -147,15 +146,17 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     run.check_stop()
     cams = run.scene.cams
     with run.timer.phase("reference_images"):
-        target_all = run.scene.images(cams, "train")
+        target_all = run.scene.images(cams)
     with run.timer.phase("init"):
         mm = _initial_micromesh(run)
         params = Parameters(run.base, mm, s, run.device, frozen_base=run.fixed is not None)
     if run.fixed is not None:
         run.event(iteration=0, fixed_levels=True,
                   micro_triangles=effective_micro_triangles(run.fixed, run.base.face_adjacency))
+    # The loop leaves time for the fit and the metrics; polishing takes what is left of the
+    # time limit (it stops at the deadline).
     schedule = Schedule(s, t_start, fixed_levels=run.fixed is not None,
-                        finish_s=run.finish_estimate_s)
+                        finish_s=run.finish_estimate_s - guess.phases["polish"])
     run.deadline = schedule.deadline
     n_it, views = s.iterations, min(s.views_per_iter, len(cams))
     t_loop, it_done = time.perf_counter(), 0

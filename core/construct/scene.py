@@ -29,14 +29,17 @@ class Scene:
         self.rf = torch.as_tensor(reference_unit.faces, dtype=torch.int64, device=device)
         self._images: dict[tuple, torch.Tensor] = {}
 
-    def images(self, cams: Cameras, key) -> torch.Tensor:
+    def images(self, cams: Cameras) -> torch.Tensor:
+        """The reference's images from ``cams``, cached by the cameras themselves (poses,
+        projections, size): equal cameras share one set."""
+        key = (cams.width, cams.height, cams.view.tobytes(), cams.proj.tobytes())
         if key not in self._images:
             self._images[key] = reference_images(self.rv, self.rf, cams, antialias=self.antialias,
                                                  kind=self.shading)
         return self._images[key]
 
 
-def face_errors(mm: MicroMesh, scene: Scene, cams: Cameras, key, s: ConstructSettings,
+def face_errors(mm: MicroMesh, scene: Scene, cams: Cameras, s: ConstructSettings,
                 ref_tree=None) -> np.ndarray:
     """Per base face error for the LOD criterion (visual: image L1 over the face's pixels)."""
     nf = mm.base.n_faces
@@ -44,7 +47,7 @@ def face_errors(mm: MicroMesh, scene: Scene, cams: Cameras, key, s: ConstructSet
         t = mm.topology
         return chamfer_face_errors(mm.micro_vertex_positions(), np.maximum(t.vertex_face, 0),
                                    scene.ref.vertices, nf, ref_tree)
-    target = scene.images(cams, key)
+    target = scene.images(cams)
     X = torch.as_tensor(mm.micro_vertex_positions(), dtype=torch.float32, device=scene.device)
     T = torch.as_tensor(mm.topology.triangles, dtype=torch.int64, device=scene.device)
     sums = np.zeros(nf)
@@ -60,10 +63,9 @@ def face_errors(mm: MicroMesh, scene: Scene, cams: Cameras, key, s: ConstructSet
 
 def image_error(mm: MicroMesh, scene: Scene, s: ConstructSettings) -> float:
     """The summed squared pixel error of ``mm`` from the metrics' views
-    (``evaluate.eval_cameras``): what the report's PSNR measures, the reference images cached
-    (key "eval")."""
+    (``evaluate.eval_cameras``): what the report's PSNR measures, the reference images cached."""
     cams = eval_cameras(s)
-    target = scene.images(cams, "eval")
+    target = scene.images(cams)
     X = torch.as_tensor(mm.micro_vertex_positions(), dtype=torch.float32, device=scene.device)
     T = torch.as_tensor(mm.topology.triangles, dtype=torch.int64, device=scene.device)
     return squared_error(X, T, cams, s, target)[0]

@@ -19,7 +19,7 @@ from .types import ConstructCancelled, Progress
 
 
 # The phases after the optimiser, in order (what :meth:`RunState.announce` counts).
-FINISH_PHASES = ("fit", "residual_lod", "base_fit", "direction_fit", "bounds", "metrics")
+FINISH_PHASES = ("fit", "residual_lod", "base_fit", "direction_fit", "bounds", "polish", "metrics")
 
 
 def budget_cost(s: ConstructSettings, base: TriMesh, reference_faces: int):

@@ -18,7 +18,7 @@ def subdivide(run: RunState, params: Parameters, it: int) -> None:
     s = run.s
     cur = params.micromesh()
     old = cur.levels.copy()
-    errs = face_errors(cur, run.scene, run.lod_cams, "lod", s, run.ref_tree) \
+    errs = face_errors(cur, run.scene, run.lod_cams, s, run.ref_tree) \
         if (s.lod == "in_optim" or run.budget > 0) else None
     gains = None
     if errs is not None and run.last_errors is not None:
