@@ -66,9 +66,27 @@ def test_polishing_that_does_not_help_is_not_kept(monkeypatch):
     assert polished(run, mm) is mm and run.notes["polish"]["kept"] is False
 
 
-def test_polishing_stops_at_the_deadline():
+def test_polishing_stops_at_the_deadline(monkeypatch):
+    """Past the deadline no step is taken; before it, a step that would end past it is left
+    out (a clock that moves one second per step, the deadline 1.5 s on)."""
+    import time
+
+    import core.construct.polish as polish
+
     run, mm = _run(polish_steps=30)
-    run.deadline = -math.inf
+    run.deadline = time.perf_counter()
+    assert polished(run, mm) is mm
+    assert run.notes["polish"] == {"steps": 0, "kept": False, "cut_by_time_limit": True}
+    clock = [0.0]
+    monkeypatch.setattr(polish, "time", SimpleNamespace(perf_counter=lambda: clock[0]))
+    step = polish._Move.step
+
+    def one_second(self, loss):
+        step(self, loss)
+        clock[0] += 1.0
+
+    monkeypatch.setattr(polish._Move, "step", one_second)
+    run.deadline = 1.5
     polished(run, mm)
     assert run.notes["polish"]["steps"] == 1 and run.notes["polish"]["cut_by_time_limit"]
 

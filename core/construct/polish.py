@@ -26,10 +26,14 @@ from .state import RunState
 
 def polished(run: RunState, mm: MicroMesh) -> MicroMesh:
     """``mm`` (bounds folded: every value t in [0, 1]) after the polishing steps, or ``mm``
-    where they do not lower the metrics' image error. A step that would end past
-    ``run.deadline`` is left out. ``run.notes["polish"]`` says what happened."""
+    where they do not lower the metrics' image error. Polishing takes what is left before
+    ``run.deadline``: none past it (the largest inputs), and a step after the first that
+    would end past it is left out. ``run.notes["polish"]`` says what happened."""
     s = run.s
     began = time.perf_counter()
+    if began >= run.deadline:
+        run.notes["polish"] = {"steps": 0, "kept": False, "cut_by_time_limit": True}
+        return mm
     before = image_error(mm, run.scene, s)
     move = _Move(mm, s, run.scene.device)
     cams = run.scene.cams.at_resolution(s.eval_resolution)
