@@ -103,3 +103,23 @@ def test_polishing_views_share_the_metrics_images_by_default():
     polish_views = scene.images(scene.cams.at_resolution(s.eval_resolution))
     assert scene.images(eval_cameras(s)) is polish_views
     assert scene.images(scene.cams) is not polish_views and len(scene._images) == 2
+
+
+def test_polishing_uses_the_callers_cameras_at_the_metrics_resolution(monkeypatch):
+    """A construction with the caller's cameras (not square, in the caller's frame) polishes
+    against their images at the metrics' resolution (the longer side)."""
+    from core.construct import construct
+    from tests.test_construct import scene, small
+
+    ref, base = scene.__wrapped__()
+    cams = fibonacci_cameras(6, radius=7.0, width=80, height=48, center=np.ones(3))
+    sizes, images = [], Scene.images
+
+    def recorded(self, c):
+        sizes.append((c.width, c.height))
+        return images(self, c)
+
+    monkeypatch.setattr(Scene, "images", recorded)
+    r = construct(ref, base, cams, small(eval_resolution=128, polish_steps=5))
+    assert (128, 77) in sizes and r.metrics["polish"]["steps"] == 5
+    assert r.metrics["polish"]["image_error_after"] > 0
