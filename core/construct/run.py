@@ -137,7 +137,10 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     t_setup = time.perf_counter()
     run = _setup(reference, base, cameras, s, dev, should_stop, fixed)
     run.progress = progress
-    run.finish_estimate_s = guess.phases["fit"] + guess.phases["polish"] + guess.phases["metrics"]
+    # The loop leaves time for the fit and the metrics; polishing takes what is left of the
+    # time limit (it stops at the deadline), but the time left shown counts it.
+    reserve = guess.phases["fit"] + guess.phases["metrics"]
+    run.finish_estimate_s = reserve + guess.phases["polish"]
     if cameras is not None:
         warnings += check_views(run.scene.ref, run.scene.cams, dev)
     run.timer.times["setup"] = time.perf_counter() - t_setup
@@ -153,10 +156,7 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     if run.fixed is not None:
         run.event(iteration=0, fixed_levels=True,
                   micro_triangles=effective_micro_triangles(run.fixed, run.base.face_adjacency))
-    # The loop leaves time for the fit and the metrics; polishing takes what is left of the
-    # time limit (it stops at the deadline).
-    schedule = Schedule(s, t_start, fixed_levels=run.fixed is not None,
-                        finish_s=run.finish_estimate_s - guess.phases["polish"])
+    schedule = Schedule(s, t_start, fixed_levels=run.fixed is not None, finish_s=reserve)
     run.deadline = schedule.deadline
     n_it, views = s.iterations, min(s.views_per_iter, len(cams))
     t_loop, it_done = time.perf_counter(), 0
