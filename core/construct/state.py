@@ -42,9 +42,9 @@ class RunState:
     relative gain that level brought; ``last_errors``: the per-face image errors measured at
     the last subdivision; ``fixed``: the artist's levels (then no schedule, no LOD);
     ``notes``: what the run decided on the way (e.g. ``residual_lod``), for the metrics;
-    ``progress`` and ``finish_estimate_s`` (the estimate's seconds for the fit and the metrics)
-    serve :meth:`announce`; ``deadline``: ``Schedule.deadline``, where the fit's later passes
-    stop short (the bounds and the metrics come after them).
+    ``progress`` and ``finish_estimate_s`` (the estimate's seconds for the fit, polishing and
+    the metrics) serve :meth:`announce`; ``deadline``: ``Schedule.deadline``, where the fit's
+    later passes, the bounds' later tries and polishing stop short (the metrics come after).
     """
 
     s: ConstructSettings
@@ -67,7 +67,7 @@ class RunState:
     notes: dict = field(default_factory=dict)
     progress: Callable[[Progress], None] | None = None
     finish_estimate_s: float = 0.0
-    deadline: float = math.inf         # perf_counter(): the fit's later passes end before it
+    deadline: float = math.inf         # perf_counter(): optional later work ends before it
     _finish_start: float | None = None
 
     def __post_init__(self) -> None:
