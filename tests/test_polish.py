@@ -123,3 +123,7 @@ def test_polishing_uses_the_callers_cameras_at_the_metrics_resolution(monkeypatc
     r = construct(ref, base, cams, small(eval_resolution=128, polish_steps=5))
     assert (128, 77) in sizes and r.metrics["polish"]["steps"] == 5
     assert r.metrics["polish"]["image_error_after"] > 0
+    # Its starting error is the one the bounds' tries measured for the micro-mesh they kept.
+    lp = r.metrics["lp_bounds"]
+    kept = lp["image_error_after"] if lp["kept"] else lp["image_error_before"]
+    assert r.metrics["polish"]["image_error_before"] == kept

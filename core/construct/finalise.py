@@ -43,12 +43,13 @@ def finalise(run: RunState, mm: MicroMesh, reference: TriMesh, base: TriMesh,
     if run.s.fold_bounds and run.fixed is None:  # what a file holds (not: a frozen base)
         run.check_stop()
         run.announce("bounds")
-        mm, bounds = folded(run, mm, samples, error), unit_bounds(mm.base.n_vertices)
+        mm, image = folded(run, mm, samples, error)
+        bounds = unit_bounds(mm.base.n_vertices)
         if run.s.polish_steps > 0:
             run.check_stop()
             run.announce("polish")
             with run.timer.phase("polish"):
-                mm = polished(run, mm)
+                mm = polished(run, mm, image)
     with run.timer.phase("finalize"):
         bounds = tight_bounds(mm) if bounds is None else bounds
     run.check_stop()
@@ -76,7 +77,8 @@ _IMAGE_TOLERANCE = 1.01
 _BLENDS = (1.0, 0.75, 0.5, 0.25)
 
 
-def folded(run: RunState, mm: MicroMesh, samples, error: float | None = None) -> MicroMesh:
+def folded(run: RunState, mm: MicroMesh, samples, error: float | None = None
+           ) -> tuple[MicroMesh, float | None]:
     """``mm`` with bounds folded into its base and directions (``core.bounds.baked``): its
     tight bounds, or, after a fit (``samples``) and with ``lp_bounds``, thinner ones: the
     least-volume bounds (``core.bounds.lp_bounds``), else a blend of them with the tight
@@ -87,11 +89,12 @@ def folded(run: RunState, mm: MicroMesh, samples, error: float | None = None) ->
     bounds' is kept (the LOD views' L1 at 192² had kept bounds that cost the ogre 0.7 dB
     and the CAD part 0.3 dB under the judge); a try that would end past ``run.deadline`` is
     left out. ``run.notes["lp_bounds"]`` says what happened. ``error``: mm's shading error
-    on ``samples``, where the caller knows it."""
+    on ``samples``, where the caller knows it. Returns the folded micro-mesh and its image
+    error (None where no try measured it)."""
     with run.timer.phase("finalize"):
         tight = baked(mm, tight_bounds(mm))
     if not run.s.lp_bounds or samples is None:
-        return tight
+        return tight, None
     with run.timer.phase("bounds"):
         ends = tight_bounds(mm), lp_bounds(mm)
         before = image_error(tight, run.scene, run.s)
@@ -99,7 +102,7 @@ def folded(run: RunState, mm: MicroMesh, samples, error: float | None = None) ->
     note = {"kept": False, "blend": None, "tries": [], "image_error_before": float(before),
             "shading_error_before": float(shading),
             "shell_before": _shell(tight)}
-    out, last = tight, 0.0
+    out, out_error, last = tight, before, 0.0
     for alpha in _BLENDS:
         began = time.perf_counter()
         if note["tries"] and began + last > run.deadline:
@@ -114,10 +117,10 @@ def folded(run: RunState, mm: MicroMesh, samples, error: float | None = None) ->
         if after <= _IMAGE_TOLERANCE * before:
             note.update(kept=True, blend=alpha,
                         shading_error_after=float(surface_errors(least, samples)[1].sum()))
-            out = least
+            out, out_error = least, after
             break
     run.notes["lp_bounds"] = note
-    return out
+    return out, out_error
 
 
 def _refitted(run: RunState, mm: MicroMesh, bounds, samples) -> MicroMesh:

@@ -24,9 +24,10 @@ from .scene import image_error
 from .state import RunState
 
 
-def polished(run: RunState, mm: MicroMesh) -> MicroMesh:
+def polished(run: RunState, mm: MicroMesh, before: float | None = None) -> MicroMesh:
     """``mm`` (bounds folded: every value t in [0, 1]) after the polishing steps, or ``mm``
-    where they do not lower the metrics' image error. Polishing takes what is left before
+    where they do not lower the metrics' image error (``before``: mm's, where the caller has
+    measured it, as the bounds' tries have). Polishing takes what is left before
     ``run.deadline``: none past it (the largest inputs), and a step after the first that
     would end past it is left out. ``run.notes["polish"]`` says what happened."""
     s = run.s
@@ -34,7 +35,8 @@ def polished(run: RunState, mm: MicroMesh) -> MicroMesh:
     if began >= run.deadline:
         run.notes["polish"] = {"steps": 0, "kept": False, "cut_by_time_limit": True}
         return mm
-    before = image_error(mm, run.scene, s)
+    if before is None:
+        before = image_error(mm, run.scene, s)
     move = _Move(mm, s, run.scene.device)
     cams = run.scene.cams.at_resolution(s.eval_resolution)
     target = run.scene.images(cams)
