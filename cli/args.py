@@ -62,7 +62,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--symmetry", choices=("X", "Y", "Z"), default=None,
                    help="symmetric decimation (with --base-method blender)")
     p.add_argument("--budget", default=None, metavar="AMOUNT",
-                   help="storage budget: '2x' (micro-triangles per input face, the default), "
+                   help="storage budget: '2x' (micro-triangles per input face, the default; "
+                        "counted on the base as micromesh-tools' microexpansion counts them), "
                         "'150000' (micro-triangles) or '300kB' / '2MB' / '500000B' (bytes); "
                         "'0': none")
     p.add_argument("--cameras", type=int, default=0,
