@@ -96,7 +96,9 @@ def _table(ax, data: dict) -> None:
     rows = [[label, fmt.format(data["metrics"][k])] for k, label, fmt in ROWS
             if data["metrics"].get(k) is not None]
     r = data["metrics"].get("residual_lod")
-    if r:
+    if r and r.get("cut_by_time_limit"):
+        rows.append(["levels moved after the fit", "left out (the time limit)"])
+    elif r:
         rows.append(["levels moved after the fit", "kept" if r["kept"] else "refused"])
         rows.append(["faces moved up / down", f"{r['faces_up']} / {r['faces_down']}"])
     for key, label in (("base_fit", "base moved by the fit"),

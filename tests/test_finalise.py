@@ -118,6 +118,11 @@ def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, 
     first = surface_errors(fin.fitted(SimpleNamespace(**{**vars(run), "cost": None}), mm)[0],
                            samples)[1].sum()
     assert surface_errors(out, samples)[1].sum() <= first * (1 + 1e-9)  # never worse
+    # past the time limit's deadline the exchange is left out, and the notes say so
+    late = SimpleNamespace(**{**vars(run), "deadline": 0.0, "notes": {}})
+    out, *_ = fin.fitted(late, mm)
+    assert late.notes["residual_lod"] == {"kept": False, "cut_by_time_limit": True}
+    np.testing.assert_array_equal(out.levels, levels)
 
 
 @pytest.mark.parametrize("growth", [1.1, 0.0])
@@ -159,11 +164,13 @@ def test_the_base_and_the_directions_move_only_where_it_helps(growth, monkeypatc
         run.s, run.notes = preset("default", residual_lod=0.0, fit_passes=1), {}
         _, _, once = fin.fitted(run, mm)
         assert run.notes["base_fit"]["passes_kept"] == 1 and error < once
-        # ...unless the time limit is over: then one pass only, and the notes say why
+        # ...unless the time limit is over: then only the passes that end before it (here
+        # none: the base stays), and the notes say why
         run.s, run.notes, run.deadline = preset("default", residual_lod=0.0), {}, 0.0
-        _, _, late = fin.fitted(run, mm)
-        assert late == once and run.notes["fit_passes"] == {"done": 1,
-                                                            "cut_by_time_limit": True}
+        late, _, _ = fin.fitted(run, mm)
+        assert run.notes["fit_passes"] == {"done": 0, "cut_by_time_limit": True}
+        np.testing.assert_array_equal(late.base.vertices, mm.base.vertices)
+        assert "base_fit" not in run.notes
         run.deadline = np.inf
     run.s, run.notes = preset("default", residual_lod=0.0, fit_directions=False), {}
     out, *_ = fin.fitted(run, mm)

@@ -76,6 +76,9 @@ def test_the_residual_lod_decision_is_reported(optimised):
                     "shading_error_after": 1.5 if kept else 2.5}
         _, data = make_report(res, ref, {**res.metrics, "residual_lod": decision}, "fast")
         assert data["metrics"]["residual_lod"] == decision
+    cut = {"kept": False, "cut_by_time_limit": True}        # left out for the time limit
+    _, data = make_report(res, ref, {**res.metrics, "residual_lod": cut}, "fast")
+    assert data["metrics"]["residual_lod"] == cut
     _, data = make_report(res, ref, {k: v for k, v in res.metrics.items()
                                      if k != "residual_lod"}, "fast")
     assert "residual_lod" not in data["metrics"]

@@ -58,7 +58,7 @@ class Estimate:
 
 
 # A budget per input face gives a count that depends on the base (``core.lod.expansion``):
-# 1.00-1.23 times the nominal one on the shared meshes' bases, 1.07 on average.
+# 0.99-1.19 times the nominal one on our bases of the shared meshes, 1.06 on average.
 _EXPANSION_ROUNDING = 1.1
 
 
