@@ -3,8 +3,8 @@
 Base offsets and micro-displacements are optimised against rendered images of the reference,
 progressively subdividing with adaptive level of detail. Everything inside runs in the
 unit-sphere frame of the reference; inputs and the result are in the caller's frame. The
-phases: setup (:mod:`.frame`, :mod:`.scene`), initial baking, the loop (:mod:`.schedule`,
-:mod:`.step`, :mod:`.subdivision`), final levels (:mod:`.choose_levels`), bounds and metrics
+phases: setup (:mod:`.frame`, :mod:`.scene`), initial baking, the loop (:mod:`.loop`,
+:mod:`.schedule`, :mod:`.step`, :mod:`.subdivision`), final levels (:mod:`.choose_levels`), bounds and metrics
 (:mod:`.finalise`).
 """
 from __future__ import annotations
@@ -31,12 +31,11 @@ from .estimate import check_fits, estimate
 from .finalise import finalise
 from .frame import (check_inputs, check_reference, device as torch_device, fixed_levels,
                     oriented_reference, prepare_base, unit_cameras)
+from .loop import optimise
 from .params import Parameters
 from .scene import Scene, bake
 from .schedule import Schedule
 from .state import RunState
-from .step import step
-from .subdivision import subdivide
 from .views import check_views
 from .types import ConstructError, ConstructResult, Progress
 
@@ -133,7 +132,6 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     warnings += base_warnings
     fixed = fixed_levels(base, levels) if levels is not None else None
     torch.manual_seed(s.seed)
-    rng = np.random.default_rng(s.seed)
     t_setup = time.perf_counter()
     run = _setup(reference, base, cameras, s, dev, should_stop, fixed)
     run.progress = progress
@@ -147,9 +145,8 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     if base_report is not None:
         run.timer.times["base"] = base_report["time_s"]
     run.check_stop()
-    cams = run.scene.cams
     with run.timer.phase("reference_images"):
-        target_all = run.scene.images(cams)
+        target_all = run.scene.images(run.scene.cams)
     with run.timer.phase("init"):
         mm = _initial_micromesh(run)
         params = Parameters(run.base, mm, s, run.device, frozen_base=run.fixed is not None)
@@ -158,33 +155,7 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
                   micro_triangles=effective_micro_triangles(run.fixed, run.base.face_adjacency))
     schedule = Schedule(s, t_start, fixed_levels=run.fixed is not None, finish_s=reserve)
     run.deadline = schedule.deadline
-    n_it, views = s.iterations, min(s.views_per_iter, len(cams))
-    t_loop, it_done = time.perf_counter(), 0
-    h = run.history
-    for it in range(n_it):
-        run.check_stop()
-        if schedule.out_of_time(it):
-            break
-        for _ in range(schedule.events_due(it)):
-            if run.level < s.max_level:
-                with run.timer.phase("subdivide"):
-                    subdivide(run, params, it)
-                run.check_stop()
-        with run.timer.phase("optimize"):
-            idx = np.sort(rng.choice(len(cams), views, replace=False))
-            warm = s.base_warm_up and run.level == 0 and run.fixed is None
-            loss, l_render, mse = step(params, s, cams.subset(idx), target_all[idx], run.h,
-                                       schedule.frozen(it), warm)
-        p = 10 * np.log10(1.0 / mse) if mse > 0 else float("inf")
-        it_done += 1
-        h["iteration"].append(it)
-        h["loss"].append(loss)
-        h["render"].append(l_render)
-        h["psnr"].append(float(p))
-        if progress is not None:
-            el = time.perf_counter() - t_loop
-            progress(Progress("optimize", it + 1, n_it, loss, float(p),
-                              schedule.bounded_eta(el / it_done * (n_it - it_done))))
+    it_done = optimise(run, params, schedule, target_all, progress)
     run.check_stop()
     with run.timer.phase("finalize"):
         mm = params.micromesh()
@@ -199,6 +170,7 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     if base_report is not None:
         result.metrics["base"] = base_report
     if progress is not None:
+        h, n_it = run.history, s.iterations
         progress(Progress("done", n_it, n_it, h["loss"][-1] if h["loss"] else 0.0,
                           result.metrics.get("psnr", h["psnr"][-1] if h["psnr"] else 0.0), 0.0))
     return result
