@@ -150,7 +150,8 @@ def test_the_panel_shows_the_estimate(scene):
     from micromesh.ui import panels
 
     text = panels._estimate_text(bpy.context)
-    assert text.startswith("Estimate: about ") and "for 320 micro-triangles" in text     # 1x its 320 faces
+    # 1x its 320 faces, a tenth over: the estimate's allowance for the count the base gives
+    assert text.startswith("Estimate: about ") and "for 352 micro-triangles" in text
     scene.micromesh.overrides = "no_such_setting=1"
     assert panels._estimate_text(bpy.context) == ""
 
