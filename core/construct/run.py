@@ -4,8 +4,8 @@ Base offsets and micro-displacements are optimised against rendered images of th
 progressively subdividing with adaptive level of detail. Everything inside runs in the
 unit-sphere frame of the reference; inputs and the result are in the caller's frame. The
 phases: setup (:mod:`.frame`, :mod:`.scene`), initial baking, the loop (:mod:`.loop`,
-:mod:`.schedule`, :mod:`.step`, :mod:`.subdivision`), final levels (:mod:`.choose_levels`), bounds and metrics
-(:mod:`.finalise`).
+:mod:`.schedule`, :mod:`.step`, :mod:`.subdivision`), final levels (:mod:`.choose_levels`),
+bounds and metrics (:mod:`.finalise`).
 """
 from __future__ import annotations
 
