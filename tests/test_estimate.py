@@ -43,10 +43,10 @@ def test_times_scale_with_the_machine_speed_and_memory_does_not():
         free = estimate(800_000, s, speed=speed)
         assert e.seconds == pytest.approx(3.0 / speed + e.phases["input"] + 0.9 * 240.0)
         assert e.seconds < free.seconds
-    # ...and where the base, the fit and the metrics alone take longer, the loop only
-    # subdivides (about 10 iterations per subdivision).
+    # ...and where the base, the fit's first round and bounds (half its estimate) and the
+    # metrics alone take longer, the loop only subdivides (about 10 iterations each).
     slow = estimate(1_000_000, preset("default", time_limit_s=60.0), speed=0.25)
-    least = slow.phases["input"] + slow.phases["base"] + slow.phases["fit"] + \
+    least = slow.phases["input"] + slow.phases["base"] + 0.5 * slow.phases["fit"] + \
         slow.phases["metrics"] + 3.0 / 0.25
     assert least > 60.0 and least < slow.seconds < least + 0.5 * slow.phases["optimize"]
 
