@@ -22,8 +22,8 @@ def test_the_estimate_grows_with_the_input_and_the_budget():
     assert estimate(100_000, preset("paper"), speed=1.0).phases["polish"] == 0
     half = estimate(1_000_000, preset("default", budget_ratio=1.0), speed=1.0)
     assert half.peak_bytes < big.peak_bytes and half.micro_triangles == 1_100_000
-    exact = estimate(1_000_000, preset("default", budget_ratio=0, budget_micro_triangles=2_000_000),
-                     speed=1.0)
+    exact = estimate(1_000_000, preset("default", budget_ratio=0,
+                                       budget_micro_triangles=2_000_000), speed=1.0)
     assert exact.micro_triangles == 2_000_000
     assert "GB of memory for 2,000,000 micro-triangles" in exact.text()
 

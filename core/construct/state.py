@@ -24,20 +24,20 @@ FINISH_PHASES = ("fit", "residual_lod", "base_fit", "direction_fit", "bounds", "
 
 
 def budget_cost(s: ConstructSettings, base: TriMesh, reference_faces: int):
-    """(cost(levels), budget) of the LOD budget, or (None, 0). Micro-triangles are counted as
-    the result has them (after the crack-free edge decimation), as the metrics report them;
-    a budget per input face is what micromesh-tools' uniform tessellation would give this
-    base (``core.lod.expansion``)."""
+    """(cost(levels), budget, its unit: "bytes" or "micro_triangles") of the LOD budget, or
+    (None, 0, ""). Micro-triangles are counted as the result has them (after the crack-free
+    edge decimation), as the metrics report them; a budget per input face is what
+    micromesh-tools' uniform tessellation would give this base (``core.lod.expansion``)."""
     kind, amount = s.budget()
     if kind == "bytes":
-        return (lambda lv: storage_bytes(lv, base.n_vertices)["total"]), amount
+        return (lambda lv: storage_bytes(lv, base.n_vertices)["total"]), amount, kind
     if kind == "expansion":
         kind, amount = "micro_triangles", float(expansion_micro_triangles(
             base, reference_faces, amount))
     if kind == "micro_triangles":
         adjacency = base.face_adjacency
-        return (lambda lv: effective_micro_triangles(lv, adjacency)), amount
-    return None, 0.0
+        return (lambda lv: effective_micro_triangles(lv, adjacency)), amount, kind
+    return None, 0.0, ""
 
 
 @dataclass
@@ -77,10 +77,9 @@ class RunState:
     _finish_start: float | None = None
 
     def __post_init__(self) -> None:
-        self.cost, self.budget = budget_cost(self.s, self.base, self.reference_faces)
+        self.cost, self.budget, unit = budget_cost(self.s, self.base, self.reference_faces)
         if self.cost is not None:
-            kind = "bytes" if self.s.budget()[0] == "bytes" else "micro_triangles"
-            self.notes["budget"] = {kind: int(self.budget)}
+            self.notes["budget"] = {unit: int(self.budget)}
 
     @property
     def bake_distance(self) -> float:
