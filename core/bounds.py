@@ -50,7 +50,7 @@ def tight_bounds(mm: MicroMesh, min_scale: float = 1e-6) -> DirectionBounds:
     return DirectionBounds(vmin, np.maximum(vmax - vmin, min_scale))
 
 
-def lp_bounds(mm: MicroMesh, min_scale: float = 1e-6) -> DirectionBounds:
+def lp_bounds(mm: MicroMesh, min_scale: float = 1e-6, smoothing: float = 0.0) -> DirectionBounds:
     """The bounds of least shell volume that still hold every micro-vertex (ours).
 
     A micro-vertex k with barycentrics W_kj in its base face needs Σ_j W_kj bias_j ≤ d_k ≤
@@ -61,11 +61,14 @@ def lp_bounds(mm: MicroMesh, min_scale: float = 1e-6) -> DirectionBounds:
     the upper bounds subject to W upper ≥ d (HiGHS, a second or two for 10k base vertices).
     Where a programme fails, :func:`tight_bounds`.
 
-    Baking these bounds (:func:`baked`) moves micro-vertices further than tight bounds do
-    (the bounds differ more between neighbours); ``core.construct.finalise`` fits the
-    displacements again after baking.
+    A file cannot hold such bounds exactly (:func:`baked`): lerp(D·bias) is not lerp(D) ·
+    lerp(bias) where both the directions and the bounds differ across a face. ``smoothing``
+    (μ ≥ 0) adds μ · ½(w_i + w_j) · |D̂_i − D̂_j| · |bound_i − bound_j| per base edge to each
+    programme's objective (w: the weights above): bounds may still differ where the
+    directions agree, and are drawn together where they do not.
     """
     from scipy.optimize import linprog
+    import scipy.sparse as sp
 
     W = mm.topology.interp.tocsr()
     V, F = mm.base.vertices, mm.base.faces
@@ -73,24 +76,36 @@ def lp_bounds(mm: MicroMesh, min_scale: float = 1e-6) -> DirectionBounds:
                                 axis=1)
     w = np.zeros(len(V))
     np.add.at(w, F.reshape(-1), np.repeat(area / 3.0, 3))
-    w *= np.linalg.norm(mm.directions, axis=1)
+    length = np.linalg.norm(mm.directions, axis=1)
+    w *= length
     used = np.diff(W.tocsc().indptr) > 0
     free = [(None, None) if u else (0.0, 0.0) for u in used]
     d = mm.displacements
-    low = linprog(-w, A_ub=W, b_ub=d, bounds=free, method="highs")
-    high = linprog(w, A_ub=-W, b_ub=-d, bounds=free, method="highs")
+    A, cost = W, np.zeros(0)
+    if smoothing > 0:
+        # |bound_i − bound_j| ≤ e_ij: one more variable and two rows per edge
+        E = mm.base.edges
+        i, j = E[:, 0], E[:, 1]
+        unit = mm.directions / np.maximum(length, 1e-300)[:, None]
+        cost = smoothing * 0.5 * (w[i] + w[j]) * np.linalg.norm(unit[i] - unit[j], axis=1)
+        ne, r = len(E), np.arange(len(E))
+        rows = np.tile(np.concatenate([r, r + ne]), 3)
+        cols = np.concatenate([i, i, j, j, len(V) + r, len(V) + r])
+        vals = np.concatenate([np.ones(ne), -np.ones(ne), -np.ones(ne), np.ones(ne),
+                               -np.ones(2 * ne)])
+        G = sp.csr_matrix((vals, (rows, cols)), shape=(2 * ne, len(V) + ne))
+        A = sp.vstack([sp.hstack([W, sp.csr_matrix((W.shape[0], ne))]), G]).tocsr()
+        free = free + [(0.0, None)] * ne
+        d = np.concatenate([d, np.zeros(2 * ne)])
+    n = len(V)
+    sign = np.ones(A.shape[0])
+    sign[:W.shape[0]] = -1.0        # the rows of W flip for the upper bounds, the edges' not
+    low = linprog(np.concatenate([-w, cost]), A_ub=A, b_ub=d, bounds=free, method="highs")
+    high = linprog(np.concatenate([w, cost]), A_ub=sp.diags(sign) @ A, b_ub=sign * d,
+                   bounds=free, method="highs")
     if low.status != 0 or high.status != 0:
         return tight_bounds(mm, min_scale)
-    return DirectionBounds(low.x, np.maximum(high.x - low.x, min_scale))
-
-
-def blended(a: DirectionBounds, b: DirectionBounds, alpha: float) -> DirectionBounds:
-    """(1 − alpha)·a + alpha·b, lower and upper ends alike. Where ``a`` and ``b`` both hold
-    every micro-vertex so does the blend (its interpolated bounds are the same blend of
-    theirs), and its shell lies between theirs."""
-    lo = (1.0 - alpha) * a.bias + alpha * b.bias
-    hi = (1.0 - alpha) * (a.bias + a.scale) + alpha * (b.bias + b.scale)
-    return DirectionBounds(lo, hi - lo)
+    return DirectionBounds(low.x[:n], np.maximum(high.x[:n] - low.x[:n], min_scale))
 
 
 def normalized_values(mm: MicroMesh, bounds: DirectionBounds, clip: bool = True) -> np.ndarray:

@@ -7,7 +7,7 @@ from hypothesis import given, settings, strategies as st
 
 from shapes import icosphere
 from core.bounds import (
-    BoundsError, DirectionBounds, blended, lp_bounds, micromesh_shell_volume, normalized_values,
+    BoundsError, DirectionBounds, baked, lp_bounds, micromesh_shell_volume, normalized_values,
     prismoid_volumes, shell_volume, tight_bounds,
 )
 from core.micromesh import MicroMesh
@@ -122,23 +122,6 @@ def test_lp_bounds_contain_every_value_in_a_thinner_shell(seed):
     assert micromesh_shell_volume(flat, lp) < 0.5 * micromesh_shell_volume(flat, tight)
 
 
-@settings(max_examples=10, deadline=None)
-@given(seed=st.integers(0, 2 ** 31 - 1), alpha=st.floats(0.0, 1.0))
-def test_blended_bounds_hold_every_value_between_the_two_shells(seed, alpha):
-    """A blend of the tight and the least-volume bounds still holds every micro-vertex under
-    parallel directions; its shell lies between theirs; the ends are the two bounds."""
-    mm = _parallel_micromesh(seed)
-    tight, lp = tight_bounds(mm), lp_bounds(mm)
-    b = blended(tight, lp, alpha)
-    t = normalized_values(mm, b, clip=False)
-    assert t.min() >= -1e-6 and t.max() <= 1 + 1e-6
-    shells = [micromesh_shell_volume(mm, x) for x in (lp, b, tight)]
-    assert shells[0] * (1 - 1e-9) <= shells[1] <= shells[2] * (1 + 1e-9)
-    for end, alpha_end in ((tight, 0.0), (lp, 1.0)):
-        e = blended(tight, lp, alpha_end)
-        assert np.allclose(e.bias, end.bias) and np.allclose(e.scale, end.scale)
-
-
 def test_vertex_normals_values_mostly_inside_and_clipped():
     m = icosphere(1)
     rng = np.random.default_rng(0)
@@ -162,3 +145,65 @@ def test_flat_mesh_min_scale_and_errors():
         normalized_values(mm, DirectionBounds(np.zeros(3), np.ones(3)))
     with pytest.raises(BoundsError):
         prismoid_volumes(m.vertices, m.faces, m.vertices[:3], bd)
+
+
+def _curved_micromesh(seed: int) -> MicroMesh:
+    """A micro-mesh on an icosphere with random levels 1-3, its normals as directions and
+    random displacements: directions differ across every face."""
+    rng = np.random.default_rng(seed)
+    m = icosphere(1)
+    mm = MicroMesh.flat(m, rng.integers(1, 4, m.n_faces))
+    return mm.with_displacements(rng.standard_normal(mm.n_vertices) * 0.05)
+
+
+def _edge_terms(mm: MicroMesh, b: DirectionBounds) -> tuple[float, float]:
+    """(volume term Σ w (upper − lower), smoothing term Σ c (|Δ lower| + |Δ upper|)) of the
+    programmes of ``lp_bounds`` (up to the factor μ)."""
+    V, F = mm.base.vertices, mm.base.faces
+    area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]),
+                                axis=1)
+    w = np.zeros(len(V))
+    np.add.at(w, F.reshape(-1), np.repeat(area / 3, 3))
+    length = np.linalg.norm(mm.directions, axis=1)
+    w *= length
+    i, j = mm.base.edges.T
+    unit = mm.directions / length[:, None]
+    c = 0.5 * (w[i] + w[j]) * np.linalg.norm(unit[i] - unit[j], axis=1)
+    up = b.bias + b.scale
+    return float(w @ b.scale), float(c @ (abs(b.bias[i] - b.bias[j]) + abs(up[i] - up[j])))
+
+
+@settings(max_examples=5, deadline=None)
+@given(seed=st.integers(0, 2 ** 31 - 1))
+def test_smoothed_least_volume_bounds(seed):
+    """Smoothing (``lp_bounds(smoothing=μ)``) keeps every micro-vertex within the bounds'
+    interpolation; a larger μ trades shell volume for bounds that differ less where the
+    directions differ; under parallel directions it changes nothing."""
+    mm = _curved_micromesh(seed)
+    W, d = mm.topology.interp, mm.displacements
+    terms = []
+    for mu in (0.0, 0.5, 2.0):
+        b = lp_bounds(mm, smoothing=mu)
+        assert np.all(W @ b.bias <= d + 1e-7) and np.all(W @ (b.bias + b.scale) >= d - 1e-7)
+        terms.append(_edge_terms(mm, b))
+    volume, smooth = np.array(terms).T
+    assert np.all(np.diff(volume) >= -1e-9 * volume[0])
+    assert np.all(np.diff(smooth) <= 1e-9 * smooth[0])
+    assert smooth[-1] < smooth[0]
+
+    par = _parallel_micromesh(seed)
+    v0 = _edge_terms(par, lp_bounds(par))[0]
+    assert np.isclose(_edge_terms(par, lp_bounds(par, smoothing=2.0))[0], v0, rtol=1e-6)
+
+
+def test_smoothed_bounds_bake_more_exactly():
+    """Folding bounds into the base and directions (``baked``) moves micro-vertices where
+    the bounds and the directions both differ across a face; the smoothed bounds move them
+    less."""
+    mm = _curved_micromesh(7)
+
+    def moved(b):
+        return np.sqrt(np.mean(np.sum((baked(mm, b).micro_vertex_positions()
+                                       - mm.micro_vertex_positions()) ** 2, axis=1)))
+
+    assert moved(lp_bounds(mm, smoothing=2.0)) < 0.8 * moved(lp_bounds(mm))

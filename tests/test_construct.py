@@ -101,14 +101,55 @@ def test_least_volume_bounds_thin_the_shell(scene):
     assert {"bounds", "fit"} <= set(least.timings)
 
 
-def _clipping_bounds(monkeypatch):
+def test_the_refit_under_folded_bounds_holds_or_clips_whichever_images_better(scene,
+                                                                              monkeypatch):
+    """After a fit under folded bounds a few values leave [0, 1]: each try keeps either the
+    result with its tight bounds folded too or the one with those values clipped, the one
+    of lower image error, and says which."""
+    import core.construct.finalise as fin
+    from core.bounds import baked, tight_bounds
+    from core.construct.scene import image_error
+
+    seen = []
+    real = fin._refitted
+
+    def spy(run, mm, bounds, samples):
+        out = real(run, mm, bounds, samples)
+        seen.append((run, mm, bounds, samples, out))
+        return out
+
+    monkeypatch.setattr(fin, "_refitted", spy)
+    ref, base = scene
+    r = construct(ref, base, None, small())
+    assert seen and [t[2] for t in r.metrics["lp_bounds"]["tries"]] == [o[2] for *_, o in seen]
+    run, mm, bounds, samples, (out, error, how) = seen[0]
+    least = fin.fit_rounds(run, baked(mm, bounds), samples, rounds=1)
+    assert (least.displacements < 0).any() or (least.displacements > 1).any()
+    held = baked(least, tight_bounds(least))
+    clipped = least.with_displacements(np.clip(least.displacements, 0, 1))
+    errors = {k: image_error(x, run.scene, run.s) for k, x in (("held", held),
+                                                               ("clipped", clipped))}
+    assert how == min(errors, key=errors.get) and np.isclose(error, errors[how])
+    np.testing.assert_allclose(out.displacements, {"held": held, "clipped": clipped}[how]
+                               .displacements)
+    assert 0 <= out.displacements.min() and out.displacements.max() <= 1
+
+
+def _clipping_bounds(monkeypatch, unsmoothed_only=False):
     """Least-volume bounds replaced by bounds that clip most micro-vertices (a stand-in for
-    a refit that loses detail): they raise the image error."""
+    a refit that loses detail): they raise the image error. ``unsmoothed_only``: the
+    smoothed ones are the real ones."""
     import core.construct.finalise as fin
     from core.bounds import DirectionBounds
 
-    monkeypatch.setattr(fin, "lp_bounds", lambda mm: DirectionBounds(
-        np.zeros(mm.base.n_vertices), np.full(mm.base.n_vertices, 1e-6)))
+    real = fin.lp_bounds
+
+    def clipping(mm, smoothing=0.0):
+        if unsmoothed_only and smoothing > 0:
+            return real(mm, smoothing=smoothing)
+        return DirectionBounds(np.zeros(mm.base.n_vertices), np.full(mm.base.n_vertices, 1e-6))
+
+    monkeypatch.setattr(fin, "lp_bounds", clipping)
     return fin
 
 
@@ -116,28 +157,27 @@ def test_least_volume_bounds_are_refused_where_they_hurt(scene, monkeypatch):
     """Where no try keeps the image error within 1 % the tight bounds' fold stays, and the
     run says so."""
     fin = _clipping_bounds(monkeypatch)
-    monkeypatch.setattr(fin, "_BLENDS", (1.0,))
+    monkeypatch.setattr(fin, "_SMOOTHINGS", (0.0, 1.0))
     ref, base = scene
     r = construct(ref, base, None, small())
     note = r.metrics["lp_bounds"]
-    assert not note["kept"] and note["blend"] is None
+    assert not note["kept"] and note["smoothing"] is None
     assert note["image_error_after"] > 1.01 * note["image_error_before"]
-    assert [t[0] for t in note["tries"]] == [1.0]
+    assert [t[0] for t in note["tries"]] == [0.0, 1.0]
     assert np.isclose(r.metrics["shell_volume"], note["shell_before"], rtol=1e-6)
 
 
-def test_a_blend_of_the_bounds_is_tried_where_the_least_volume_ones_hurt(scene, monkeypatch):
-    """Where the least-volume bounds raise the image error, blends of them with the tight
-    bounds are tried in turn (``_BLENDS``); the first within 1 % is kept (here the first
-    blend: the refit recovers what it clips), with what it measured, and its shell is the
-    result's."""
-    fin = _clipping_bounds(monkeypatch)
+def test_smoother_bounds_are_tried_where_the_least_volume_ones_hurt(scene, monkeypatch):
+    """Where the least-volume bounds raise the image error, smoother ones are tried in turn
+    (``_SMOOTHINGS``); the first within 1 % is kept (here the first smoothed one), with what
+    it measured, and its shell is the result's."""
+    fin = _clipping_bounds(monkeypatch, unsmoothed_only=True)
     ref, base = scene
     r = construct(ref, base, None, small())
     note = r.metrics["lp_bounds"]
-    assert [t[0] for t in note["tries"]] == list(fin._BLENDS[:2])
+    assert [t[0] for t in note["tries"]] == list(fin._SMOOTHINGS[:2])
     assert note["tries"][0][1] > 1.01 and note["tries"][1][1] <= 1.01
-    assert note["kept"] and note["blend"] == fin._BLENDS[1]
+    assert note["kept"] and note["smoothing"] == fin._SMOOTHINGS[1]
     assert note["shell_after"] < note["shell_before"]
     assert np.isclose(r.metrics["shell_volume"], note["shell_after"], rtol=1e-6)
 

@@ -2,9 +2,9 @@
 displacements (``core.fit``), levels moved to where the fit still misses the reference and
 fitted again (``choose_levels.residual_exchange``; kept only where that lowers the shading
 error), bounds folded into the base and the directions (what a file holds:
-``core.bounds.baked``; those of least shell volume, or a blend of them with the tight ones,
-with the displacements fitted again under them, where the image error of the metrics' views
-rises by 1 % at most), the values polished against the images within those bounds
+``core.bounds.baked``; those of least shell volume, drawn smoother across faces whose
+directions differ until they cost the images little, with the displacements fitted again
+under them, where the image error of the metrics' views rises by 1 % at most), the values polished against the images within those bounds
 (``polish``), metrics, and the result in the caller's frame."""
 from __future__ import annotations
 
@@ -12,8 +12,7 @@ import time
 
 import numpy as np
 
-from ..bounds import (baked, blended, lp_bounds, micromesh_shell_volume, tight_bounds,
-                      unit_bounds)
+from ..bounds import baked, lp_bounds, micromesh_shell_volume, tight_bounds, unit_bounds
 from ..mesh import TriMesh
 from ..micromesh import MicroMesh
 from ..microtopology import balance_levels
@@ -71,51 +70,49 @@ def finalise(run: RunState, mm: MicroMesh, reference: TriMesh, base: TriMesh,
 
 
 # A thinner shell is kept where the metrics' image error (the MSE behind the report's PSNR)
-# rises by at most this factor (0.04 dB); the least-volume bounds are tried first, then
-# these blends of them with the tight bounds (``core.bounds.blended``), until one is kept.
+# rises by at most this factor (0.04 dB); the least-volume bounds are tried with these
+# smoothings in turn (``core.bounds.lp_bounds``), until one is kept.
 _IMAGE_TOLERANCE = 1.01
-_BLENDS = (1.0, 0.75, 0.5, 0.25)
+_SMOOTHINGS = (0.0, 0.25, 0.5, 1.0, 2.0)
 
 
 def folded(run: RunState, mm: MicroMesh, samples, error: float | None = None
            ) -> tuple[MicroMesh, float | None]:
     """``mm`` with bounds folded into its base and directions (``core.bounds.baked``): its
     tight bounds, or, after a fit (``samples``) and with ``lp_bounds``, thinner ones: the
-    least-volume bounds (``core.bounds.lp_bounds``), else a blend of them with the tight
-    bounds (``_BLENDS``), each with the displacements fitted again under it (baking such
-    bounds moves micro-vertices: neighbours' bounds differ more) and then the tight bounds of
-    the result folded, which are nearly unit and bake almost exactly. The first whose image
-    error from the metrics' views (``scene.image_error``) is at most 1 % above the tight
-    bounds' is kept (the LOD views' L1 at 192² had kept bounds that cost the ogre 0.7 dB
-    and the CAD part 0.3 dB under the judge); a try that would end past ``run.deadline`` is
-    left out. ``run.notes["lp_bounds"]`` says what happened. ``error``: mm's shading error
-    on ``samples``, where the caller knows it. Returns the folded micro-mesh and its image
+    least-volume bounds (``core.bounds.lp_bounds``), else the same drawn smoother where the
+    directions differ, which a file holds more exactly (``_SMOOTHINGS``), each with the
+    displacements fitted again under it (:func:`_refitted`). The first whose image error
+    from the metrics' views (``scene.image_error``) is at most 1 % above the tight bounds'
+    is kept (the LOD views' L1 at 192² had kept bounds that cost the ogre 0.7 dB and the CAD
+    part 0.3 dB under the judge); a try that would end past ``run.deadline`` is left out.
+    ``run.notes["lp_bounds"]`` says what happened. ``error``: mm's shading error on
+    ``samples``, where the caller knows it. Returns the folded micro-mesh and its image
     error (None where no try measured it)."""
     with run.timer.phase("finalize"):
         tight = baked(mm, tight_bounds(mm))
     if not run.s.lp_bounds or samples is None:
         return tight, None
     with run.timer.phase("bounds"):
-        ends = tight_bounds(mm), lp_bounds(mm)
         before = image_error(tight, run.scene, run.s)
         shading = surface_errors(tight, samples)[1].sum() if error is None else error
-    note = {"kept": False, "blend": None, "tries": [], "image_error_before": float(before),
+    note = {"kept": False, "smoothing": None, "tries": [], "image_error_before": float(before),
             "shading_error_before": float(shading),
             "shell_before": _shell(tight)}
     out, out_error, last = tight, before, 0.0
-    for alpha in _BLENDS:
+    for mu in _SMOOTHINGS:
         began = time.perf_counter()
         if note["tries"] and began + last > run.deadline:
             note["cut_by_time_limit"] = True
             break
-        least = _refitted(run, mm, blended(*ends, alpha), samples)
         with run.timer.phase("bounds"):
-            after = image_error(least, run.scene, run.s)
-        note["tries"].append([alpha, float(after / max(before, 1e-300))])
+            bounds = lp_bounds(mm, smoothing=mu)
+        least, after, how = _refitted(run, mm, bounds, samples)
+        note["tries"].append([mu, float(after / max(before, 1e-300)), how])
         note.update(image_error_after=float(after), shell_after=_shell(least))
         last = time.perf_counter() - began
         if after <= _IMAGE_TOLERANCE * before:
-            note.update(kept=True, blend=alpha,
+            note.update(kept=True, smoothing=mu,
                         shading_error_after=float(surface_errors(least, samples)[1].sum()))
             out, out_error = least, after
             break
@@ -123,15 +120,22 @@ def folded(run: RunState, mm: MicroMesh, samples, error: float | None = None
     return out, out_error
 
 
-def _refitted(run: RunState, mm: MicroMesh, bounds, samples) -> MicroMesh:
-    """``mm`` with ``bounds`` folded, its displacements fitted again, then its tight bounds
-    folded."""
+def _refitted(run: RunState, mm: MicroMesh, bounds, samples
+              ) -> tuple[MicroMesh, float, str]:
+    """``mm`` with ``bounds`` folded and its displacements fitted again, and its image error.
+    The fit leaves a few values outside [0, 1]: either the result's tight bounds are folded
+    too ("held"; that moves micro-vertices wherever they differ from vertex to vertex) or
+    those values are clipped ("clipped"), whichever the metrics' views image better."""
     with run.timer.phase("bounds"):
         least = baked(mm, bounds)
     with run.timer.phase("fit"):
         least = fit_rounds(run, least, samples, rounds=1)
     with run.timer.phase("bounds"):
-        return baked(least, tight_bounds(least))
+        held = baked(least, tight_bounds(least))
+        clipped = least.with_displacements(np.clip(least.displacements, 0.0, 1.0))
+        errors = [image_error(x, run.scene, run.s) for x in (held, clipped)]
+    k = int(np.argmin(errors))
+    return (held, clipped)[k], float(errors[k]), ("held", "clipped")[k]
 
 
 def _shell(mm: MicroMesh) -> float:
