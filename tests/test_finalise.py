@@ -1,6 +1,8 @@
 """The end of a construction (``core.construct.fitting`` and ``choose_levels``) on stand-in
 runs: the residual exchange of levels, kept only where it lowers the shading error, and the
 base round, kept only where it helps."""
+import time
+
 import numpy as np
 import pytest
 
@@ -176,3 +178,32 @@ def test_the_base_and_the_directions_move_only_where_it_helps(growth, monkeypatc
     out, *_ = fin.fitted(run, mm)
     assert "direction_fit" not in run.notes
     np.testing.assert_array_equal(out.directions, mm.directions)
+
+
+@pytest.mark.parametrize("tail", [0.0, 1e6])
+def test_an_optional_fit_stage_leaves_room_for_the_bounds_after_it(tail, monkeypatch):
+    """The residual exchange and the moving passes run only where they would end before the
+    deadline with the bounds' tries (``_TAIL_TIME`` times the first fit) still to come."""
+    from types import SimpleNamespace
+
+    import core.construct.fitting as fin
+    from core.metrics import PhaseTimer
+    from core.micromesh import MicroMesh
+
+    v, f = icosphere(1)
+    base = TriMesh(v, f)
+    rv, rf = icosphere(3)
+    mm = MicroMesh.flat(base, np.full(base.n_faces, 1))
+    run = SimpleNamespace(s=preset("default", residual_lod=0.0, fit_passes=1), base=base,
+                          cost=None, budget=0, fixed=None,
+                          scene=SimpleNamespace(ref=TriMesh(rv * 1.02, rf)), timer=PhaseTimer(),
+                          notes={}, check_stop=lambda: None,
+                          deadline=time.perf_counter() + 600.0, announce=lambda phase: None)
+    monkeypatch.setattr(fin, "_PASS_TIME", 0.0)
+    monkeypatch.setattr(fin, "_TAIL_TIME", tail)
+    fin.fitted(run, mm)
+    if tail:
+        assert run.notes["fit_passes"] == {"done": 0, "cut_by_time_limit": True}
+        assert "base_fit" not in run.notes
+    else:
+        assert "fit_passes" not in run.notes and "base_fit" in run.notes

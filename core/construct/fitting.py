@@ -40,20 +40,24 @@ def fitted(run: RunState, mm: MicroMesh) -> tuple[MicroMesh, Samples, float | No
     if run.s.residual_lod > 0 and run.fixed is None and run.cost is not None:
         run.check_stop()
         run.announce("residual_lod")
-        if _ends_past_deadline(run, _EXCHANGE_TIME * first):
+        if _ends_past_deadline(run, (_EXCHANGE_TIME + _TAIL_TIME) * first):
             run.notes["residual_lod"] = {"kept": False, "cut_by_time_limit": True}
         else:
             mm, samples, error = _exchanged(run, mm, samples)
     if run.fixed is None:
-        mm, error = _moving_rounds(run, mm, samples, error, _PASS_TIME * first)
+        mm, error = _moving_rounds(run, mm, samples, error, _PASS_TIME * first,
+                                   _TAIL_TIME * first)
     return mm, samples, error
 
 
 # The residual exchange and one pass of the moving rounds take about these multiples of the
-# first fit's time (1M and 2M inputs: 1.45-1.6 and 3.05-3.3): where one would end past the
-# deadline it is left out (the first fit, the bounds and the metrics always run).
+# first fit's time (1M and 2M inputs: 1.45-1.6 and 3.05-3.4): where one would end past the
+# deadline it is left out (the first fit, the bounds and the metrics always run). The
+# bounds' tries, which always run after them, take about the first fit's time (_TAIL_TIME):
+# an optional stage must leave that much before the deadline too.
 _EXCHANGE_TIME = 1.5
 _PASS_TIME = 3.0
+_TAIL_TIME = 1.0
 
 
 def _ends_past_deadline(run: RunState, seconds: float) -> bool:
@@ -61,13 +65,13 @@ def _ends_past_deadline(run: RunState, seconds: float) -> bool:
 
 
 def _moving_rounds(run: RunState, mm: MicroMesh, samples, error: float | None,
-                   first_pass: float) -> tuple[MicroMesh, float | None]:
+                   first_pass: float, tail: float = 0.0) -> tuple[MicroMesh, float | None]:
     """The base round and the directions' round (those the settings ask for), ``fit_passes``
     times, each kept by :func:`_kept` with the shell capped at ``_SHELL_GROWTH`` times mm's;
     the micro-mesh and its shading error (``error``: mm's, where known). A pass that would
-    end past ``run.deadline`` (90 % into the time limit; the first takes about
-    ``first_pass`` seconds, a later one as long as the one before) is left out, and
-    ``run.notes["fit_passes"]`` says so."""
+    end past ``run.deadline`` (90 % into the time limit) less ``tail`` seconds (the first
+    takes about ``first_pass`` seconds, a later one as long as the one before) is left out,
+    and ``run.notes["fit_passes"]`` says so."""
     moving = [(note, move) for on, note, move in (
         (run.s.fit_base_stiffness > 0, "base_fit", _base_moved),
         (run.s.fit_directions, "direction_fit", _directions_turned)) if on]
@@ -80,7 +84,7 @@ def _moving_rounds(run: RunState, mm: MicroMesh, samples, error: float | None,
     known, cap, last = (error, shell), _SHELL_GROWTH * shell, first_pass
     for n in range(run.s.fit_passes):
         began = time.perf_counter()
-        if _ends_past_deadline(run, last):         # this pass would overrun the limit
+        if _ends_past_deadline(run, last + tail):  # this pass would overrun the limit
             run.notes["fit_passes"] = {"done": n, "cut_by_time_limit": True}
             break
         for note, move in moving:
