@@ -83,20 +83,10 @@ def lp_bounds(mm: MicroMesh, min_scale: float = 1e-6, smoothing: float = 0.0) ->
     d = mm.displacements
     A, cost = W, np.zeros(0)
     if smoothing > 0:
-        # |bound_i − bound_j| ≤ e_ij: one more variable and two rows per edge
-        E = mm.base.edges
-        i, j = E[:, 0], E[:, 1]
-        unit = mm.directions / np.maximum(length, 1e-300)[:, None]
-        cost = smoothing * 0.5 * (w[i] + w[j]) * np.linalg.norm(unit[i] - unit[j], axis=1)
-        ne, r = len(E), np.arange(len(E))
-        rows = np.tile(np.concatenate([r, r + ne]), 3)
-        cols = np.concatenate([i, i, j, j, len(V) + r, len(V) + r])
-        vals = np.concatenate([np.ones(ne), -np.ones(ne), -np.ones(ne), np.ones(ne),
-                               -np.ones(2 * ne)])
-        G = sp.csr_matrix((vals, (rows, cols)), shape=(2 * ne, len(V) + ne))
-        A = sp.vstack([sp.hstack([W, sp.csr_matrix((W.shape[0], ne))]), G]).tocsr()
-        free = free + [(0.0, None)] * ne
-        d = np.concatenate([d, np.zeros(2 * ne)])
+        G, cost = _smoothing_rows(mm, w, length, smoothing)
+        A = sp.vstack([sp.hstack([W, sp.csr_matrix((W.shape[0], len(cost)))]), G]).tocsr()
+        free = free + [(0.0, None)] * len(cost)
+        d = np.concatenate([d, np.zeros(G.shape[0])])
     n = len(V)
     sign = np.ones(A.shape[0])
     sign[:W.shape[0]] = -1.0        # the rows of W flip for the upper bounds, the edges' not
@@ -106,6 +96,23 @@ def lp_bounds(mm: MicroMesh, min_scale: float = 1e-6, smoothing: float = 0.0) ->
     if low.status != 0 or high.status != 0:
         return tight_bounds(mm, min_scale)
     return DirectionBounds(low.x[:n], np.maximum(high.x[:n] - low.x[:n], min_scale))
+
+
+def _smoothing_rows(mm: MicroMesh, w: np.ndarray, length: np.ndarray, smoothing: float):
+    """For :func:`lp_bounds`: one more variable e per base edge (i, j), the rows
+    ±(bound_i − bound_j) − e ≤ 0 (2E, nv + E) and e's cost μ · ½(w_i + w_j) · |D̂_i − D̂_j|."""
+    import scipy.sparse as sp
+
+    i, j = mm.base.edges.T
+    nv, ne = len(w), len(i)
+    unit = mm.directions / np.maximum(length, 1e-300)[:, None]
+    cost = smoothing * 0.5 * (w[i] + w[j]) * np.linalg.norm(unit[i] - unit[j], axis=1)
+    r = np.arange(ne)
+    rows = np.tile(np.concatenate([r, r + ne]), 3)
+    cols = np.concatenate([i, i, j, j, nv + r, nv + r])
+    one = np.ones(ne)
+    vals = np.concatenate([one, -one, -one, one, -one, -one])
+    return sp.csr_matrix((vals, (rows, cols)), shape=(2 * ne, nv + ne)), cost
 
 
 def normalized_values(mm: MicroMesh, bounds: DirectionBounds, clip: bool = True) -> np.ndarray:

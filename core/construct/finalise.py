@@ -4,8 +4,9 @@ fitted again (``choose_levels.residual_exchange``; kept only where that lowers t
 error), bounds folded into the base and the directions (what a file holds:
 ``core.bounds.baked``; those of least shell volume, drawn smoother across faces whose
 directions differ until they cost the images little, with the displacements fitted again
-under them, where the image error of the metrics' views rises by 1 % at most), the values polished against the images within those bounds
-(``polish``), metrics, and the result in the caller's frame."""
+under them, where the image error of the metrics' views rises by 1 % at most), the values
+polished against the images within those bounds (``polish``), metrics, and the result in
+the caller's frame."""
 from __future__ import annotations
 
 import time
