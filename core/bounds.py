@@ -71,13 +71,7 @@ def lp_bounds(mm: MicroMesh, min_scale: float = 1e-6, smoothing: float = 0.0) ->
     import scipy.sparse as sp
 
     W = mm.topology.interp.tocsr()
-    V, F = mm.base.vertices, mm.base.faces
-    area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]),
-                                axis=1)
-    w = np.zeros(len(V))
-    np.add.at(w, F.reshape(-1), np.repeat(area / 3.0, 3))
-    length = np.linalg.norm(mm.directions, axis=1)
-    w *= length
+    w, length = shell_weights(mm)
     used = np.diff(W.tocsc().indptr) > 0
     free = [(None, None) if u else (0.0, 0.0) for u in used]
     d = mm.displacements
@@ -87,7 +81,7 @@ def lp_bounds(mm: MicroMesh, min_scale: float = 1e-6, smoothing: float = 0.0) ->
         A = sp.vstack([sp.hstack([W, sp.csr_matrix((W.shape[0], len(cost)))]), G]).tocsr()
         free = free + [(0.0, None)] * len(cost)
         d = np.concatenate([d, np.zeros(G.shape[0])])
-    n = len(V)
+    n = len(w)
     sign = np.ones(A.shape[0])
     sign[:W.shape[0]] = -1.0        # the rows of W flip for the upper bounds, the edges' not
     low = linprog(np.concatenate([-w, cost]), A_ub=A, b_ub=d, bounds=free, method="highs")
@@ -96,6 +90,18 @@ def lp_bounds(mm: MicroMesh, min_scale: float = 1e-6, smoothing: float = 0.0) ->
     if low.status != 0 or high.status != 0:
         return tight_bounds(mm, min_scale)
     return DirectionBounds(low.x[:n], np.maximum(high.x[:n] - low.x[:n], min_scale))
+
+
+def shell_weights(mm: MicroMesh) -> tuple[np.ndarray, np.ndarray]:
+    """(w, |D|) per base vertex: a third of the area of the faces around it times its
+    direction's length |D| (the shell's volume is about Σ w · scale)."""
+    V, F = mm.base.vertices, mm.base.faces
+    area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]),
+                                axis=1)
+    w = np.zeros(len(V))
+    np.add.at(w, F.reshape(-1), np.repeat(area / 3.0, 3))
+    length = np.linalg.norm(mm.directions, axis=1)
+    return w * length, length
 
 
 def _smoothing_rows(mm: MicroMesh, w: np.ndarray, length: np.ndarray, smoothing: float):

@@ -8,7 +8,7 @@ from hypothesis import given, settings, strategies as st
 from shapes import icosphere
 from core.bounds import (
     BoundsError, DirectionBounds, baked, lp_bounds, micromesh_shell_volume, normalized_values,
-    prismoid_volumes, shell_volume, tight_bounds,
+    prismoid_volumes, shell_volume, shell_weights, tight_bounds,
 )
 from core.micromesh import MicroMesh
 
@@ -159,13 +159,7 @@ def _curved_micromesh(seed: int) -> MicroMesh:
 def _edge_terms(mm: MicroMesh, b: DirectionBounds) -> tuple[float, float]:
     """(volume term Σ w (upper − lower), smoothing term Σ c (|Δ lower| + |Δ upper|)) of the
     programmes of ``lp_bounds`` (up to the factor μ)."""
-    V, F = mm.base.vertices, mm.base.faces
-    area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]),
-                                axis=1)
-    w = np.zeros(len(V))
-    np.add.at(w, F.reshape(-1), np.repeat(area / 3, 3))
-    length = np.linalg.norm(mm.directions, axis=1)
-    w *= length
+    w, length = shell_weights(mm)
     i, j = mm.base.edges.T
     unit = mm.directions / length[:, None]
     c = 0.5 * (w[i] + w[j]) * np.linalg.norm(unit[i] - unit[j], axis=1)
