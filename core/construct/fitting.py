@@ -65,7 +65,7 @@ def _ends_past_deadline(run: RunState, seconds: float) -> bool:
 
 
 def _moving_rounds(run: RunState, mm: MicroMesh, samples, error: float | None,
-                   first_pass: float, tail: float = 0.0) -> tuple[MicroMesh, float | None]:
+                   first_pass: float, tail: float) -> tuple[MicroMesh, float | None]:
     """The base round and the directions' round (those the settings ask for), ``fit_passes``
     times, each kept by :func:`_kept` with the shell capped at ``_SHELL_GROWTH`` times mm's;
     the micro-mesh and its shading error (``error``: mm's, where known). A pass that would
