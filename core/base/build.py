@@ -78,7 +78,7 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
     bounding-box diagonal (0: none). ``min_quality``: floor on 2r/R of new triangles.
     ``progress(fraction)``; ``should_stop()`` cancels (``DecimateCancelled``).
 
-    The report: ``target_faces``, ``faces``, ``stopped`` ("target" or "limit"),
+    The report: ``target_faces``, ``faces``, ``stopped`` ("target" or "limit"), ``flips``,
     ``error_mean`` / ``error_max`` (reference vertices to the base, over the diagonal; mean
     weighted by vertex area), ``isotropy``, ``topology_input`` / ``topology_base``,
     ``warnings`` (sentences), ``time_s``.
@@ -114,7 +114,7 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
                      "triangle shapes")
     rep = {"target_faces": target if target > 1 else None, "faces": base_unit.n_faces,
            "vertices": base_unit.n_vertices, "stopped": dec.stopped,
-           "collapses": dec.collapses, "rejected": dec.rejected,
+           "collapses": dec.collapses, "rejected": dec.rejected, "flips": dec.flips,
            "max_error": max_error, "min_quality": min_quality,
            "error_mean": float((d * w).sum() / max(w.sum(), 1e-300)),
            "error_max": float(d.max()), "isotropy": isotropy(base_unit.vertices, base_unit.faces),

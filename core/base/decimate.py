@@ -17,10 +17,12 @@ from ..mesh import TriMesh
 from . import heap
 from .collapse import (RING, STATUS_EXHAUSTED, STATUS_GROW, STATUS_STEPS, STATUS_TARGET,
                        candidate, collapse, geometry_ok)
+from .flip import flip_all
 from .links import build_lists, link_ok, ring
 from .quadrics import vertex_quadrics
 
 SLICE = 4000         # collapses per compiled call between progress reports
+FLIP_PASSES = 20     # the final flips stop after this many passes over the edges
 
 
 class DecimateCancelled(RuntimeError):
@@ -33,7 +35,7 @@ class Decimation:
 
     ``stopped``: "target" (reached ``target_faces``) or "limit" (no collapse left within the
     error bound, the topology and the shape limits). ``rejected``: how many popped collapses
-    each check refused (error, topology, geometry).
+    each check refused (error, topology, geometry). ``flips``: edges the final pass flipped.
     """
 
     vertices: np.ndarray
@@ -41,6 +43,7 @@ class Decimation:
     stopped: str
     collapses: int
     rejected: dict
+    flips: int = 0
 
 
 @kernel(cache=True)
@@ -147,7 +150,7 @@ def locked_vertices(mesh: TriMesh) -> np.ndarray:
 def decimate(mesh: TriMesh, target_faces: int, max_error: float = np.inf,
              min_quality: float = 0.4, max_normal_angle_deg: float = 60.0, smooth: bool = True,
              length_weight: float = 1e-3, boundary_weight: float = 4.0, crease_weight: float = 1.0,
-             feature_angle_deg: float = 50.0,
+             feature_angle_deg: float = 50.0, flip_angle_deg: float | None = 20.0,
              progress: Callable[[int, int], None] | None = None,
              should_stop: Callable[[], bool] | None = None) -> Decimation:
     """Collapse edges of ``mesh`` until ``target_faces`` remain or no collapse is allowed.
@@ -155,8 +158,11 @@ def decimate(mesh: TriMesh, target_faces: int, max_error: float = np.inf,
     ``max_error``: bound on the root-mean-square distance from a merged vertex to the planes
     of the original faces it stands for (area-weighted; micromesh-tools' criterion).
     ``min_quality``: floor on 2r/R of new triangles. ``smooth``: where the planes leave the
-    merged vertex free, place it at the one-rings' centre (else at the edge midpoint). ``length_weight``: edge length² added to the priority, relative to the
-    error. ``progress(faces, target)`` is called between slices; ``should_stop()`` raises
+    merged vertex free, place it at the one-rings' centre (else at the edge midpoint).
+    ``length_weight``: edge length² added to the priority, relative to the error.
+    ``flip_angle_deg``: afterwards, edges whose two faces are within this angle, one of them
+    below ``min_quality``, are flipped where that shapes them better (:mod:`core.base.flip`;
+    the diagonals within ``max_error`` of each other); None: no flips. ``progress(faces, target)`` is called between slices; ``should_stop()`` raises
     :class:`DecimateCancelled`.
     """
     V = mesh.vertices.copy()
@@ -195,8 +201,14 @@ def decimate(mesh: TriMesh, target_faces: int, max_error: float = np.inf,
             hi = np.concatenate([hi, np.empty_like(hi)])
         elif status != STATUS_STEPS:
             break
+    flips = 0
+    if flip_angle_deg is not None:
+        flat = float(np.cos(np.radians(flip_angle_deg)))
+        gap = float(max_error) if np.isfinite(max_error) else 1e300
+        flips = flip_all(V, F, head, tail, nxt, falive, locked, mark, tag, flat, gap,
+                         min_quality, FLIP_PASSES)
     keep = F[falive]
     used, inverse = np.unique(keep, return_inverse=True)
     return Decimation(V[used], inverse.reshape(-1, 3).astype(np.int64),
                       "target" if status == STATUS_TARGET else "limit", total,
-                      dict(zip(("error", "topology", "geometry"), rejected.tolist())))
+                      dict(zip(("error", "topology", "geometry"), rejected.tolist())), flips)
