@@ -162,7 +162,8 @@ def decimate(mesh: TriMesh, target_faces: int, max_error: float = np.inf,
     ``length_weight``: edge length² added to the priority, relative to the error.
     ``flip_angle_deg``: afterwards, edges whose two faces are within this angle, one of them
     below ``min_quality``, are flipped where that shapes them better (:mod:`core.base.flip`;
-    the diagonals within ``max_error`` of each other); None: no flips. ``progress(faces, target)`` is called between slices; ``should_stop()`` raises
+    the diagonals within ``max_error`` of each other); None: no flips.
+    ``progress(faces, target)`` is called between slices; ``should_stop()`` raises
     :class:`DecimateCancelled`.
     """
     V = mesh.vertices.copy()

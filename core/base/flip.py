@@ -7,7 +7,7 @@ keep them from getting worse. Where a quad has a triangle below the floor and it
 triangles would be better shaped split along the other diagonal, the edge is flipped: better
 shapes at the same vertices and face count (micromesh-tools flips edges in its decimation
 too). Quads whose triangles are all above the floor are left as the collapses made them: on
-organic meshes flipping those too cost 0.02-0.2 dB in the end (``docs/results.md``).
+organic meshes flipping those too cost up to 0.23 dB in the end (``docs/results.md``).
 
 An edge (u, o) with faces (u, o, a) and (o, u, b) becomes (a, b) when
 - one of the two faces is below ``below`` (2r/R);
