@@ -80,9 +80,9 @@ def _face_quality(f, F, V):  # pragma: no cover - compiled
 
 
 @kernel(cache=True)
-def try_flip(u, o, V, F, head, tail, nxt, falive, locked, mark, tag, buf, min_cos,
-             max_gap, below):  # pragma: no cover - compiled
-    """Flip edge (u, o) where the rules above allow it; True when flipped."""
+def _flap(u, o, F, head, nxt, falive):  # pragma: no cover - compiled
+    """(f1, c1, f2, c2): the live faces (u, o, a) and (o, u, b) of edge (u, o) with u's
+    corner in each; all -1 unless there is exactly one of each."""
     f1 = f2 = -1
     c1 = c2 = -1
     k = head[u]
@@ -92,14 +92,38 @@ def try_flip(u, o, V, F, head, tail, nxt, falive, locked, mark, tag, buf, min_co
         if falive[f]:
             if F[f, (c + 1) % 3] == o:
                 if f1 >= 0:
-                    return False
+                    return -1, -1, -1, -1
                 f1, c1 = f, c
             elif F[f, (c + 2) % 3] == o:
                 if f2 >= 0:
-                    return False
+                    return -1, -1, -1, -1
                 f2, c2 = f, c
         k = nxt[k]
     if f1 < 0 or f2 < 0:
+        return -1, -1, -1, -1
+    return f1, c1, f2, c2
+
+
+@kernel(cache=True)
+def _diagonals_within(u, o, a, b, V, max_gap):  # pragma: no cover - compiled
+    """The diagonals (u, o) and (a, b) pass within ``max_gap`` of each other:
+    |det(o-u, a-u, b-u)| / |(o-u) x (b-a)| (False where they are parallel)."""
+    ex, ey, ez = V[o, 0] - V[u, 0], V[o, 1] - V[u, 1], V[o, 2] - V[u, 2]
+    ax, ay, az = V[a, 0] - V[u, 0], V[a, 1] - V[u, 1], V[a, 2] - V[u, 2]
+    bx, by, bz = V[b, 0] - V[u, 0], V[b, 1] - V[u, 1], V[b, 2] - V[u, 2]
+    dx, dy, dz = bx - ax, by - ay, bz - az
+    cx, cy, cz = ey * dz - ez * dy, ez * dx - ex * dz, ex * dy - ey * dx
+    cross = np.sqrt(cx * cx + cy * cy + cz * cz)
+    vol = abs(ex * (ay * bz - az * by) - ey * (ax * bz - az * bx) + ez * (ax * by - ay * bx))
+    return cross > 1e-300 and vol <= max_gap * cross
+
+
+@kernel(cache=True)
+def try_flip(u, o, V, F, head, tail, nxt, falive, locked, mark, tag, buf, min_cos,
+             max_gap, below):  # pragma: no cover - compiled
+    """Flip edge (u, o) where the rules above allow it; True when flipped."""
+    f1, c1, f2, c2 = _flap(u, o, F, head, nxt, falive)
+    if f1 < 0:
         return False
     a = F[f1, (c1 + 2) % 3]
     b = F[f2, (c2 + 1) % 3]
@@ -119,15 +143,7 @@ def try_flip(u, o, V, F, head, tail, nxt, falive, locked, mark, tag, buf, min_co
     n2x, n2y, n2z, l2 = _unit(n2x, n2y, n2z)
     if l1 <= 0 or l2 <= 0 or n1x * n2x + n1y * n2y + n1z * n2z < min_cos:
         return False
-    # The gap between the diagonals: |det(o-u, a-u, b-u)| / |(o-u) x (b-a)|.
-    ex, ey, ez = V[o, 0] - V[u, 0], V[o, 1] - V[u, 1], V[o, 2] - V[u, 2]
-    ax, ay, az = V[a, 0] - V[u, 0], V[a, 1] - V[u, 1], V[a, 2] - V[u, 2]
-    bx, by, bz = V[b, 0] - V[u, 0], V[b, 1] - V[u, 1], V[b, 2] - V[u, 2]
-    dx, dy, dz = bx - ax, by - ay, bz - az
-    cx, cy, cz = ey * dz - ez * dy, ez * dx - ex * dz, ex * dy - ey * dx
-    cross = np.sqrt(cx * cx + cy * cy + cz * cz)
-    vol = abs(ex * (ay * bz - az * by) - ey * (ax * bz - az * bx) + ez * (ax * by - ay * bx))
-    if cross <= 1e-300 or vol > max_gap * cross:
+    if not _diagonals_within(u, o, a, b, V, max_gap):
         return False
     # The new faces (u, b, a) and (o, a, b).
     p1, m1x, m1y, m1z = _quality(V[u, 0], V[u, 1], V[u, 2], V[b, 0], V[b, 1], V[b, 2],
@@ -162,11 +178,10 @@ def flip_all(V, F, head, tail, nxt, falive, locked, mark, tag, min_cos, max_gap,
         done = 0
         for f in range(F.shape[0]):
             for c in range(3):
-                if falive[f]:
-                    u, o = F[f, c], F[f, (c + 1) % 3]
-                    if u < o and try_flip(u, o, V, F, head, tail, nxt, falive, locked, mark, tag,
-                                          buf, min_cos, max_gap, below):
-                        done += 1
+                u, o = F[f, c], F[f, (c + 1) % 3]
+                if falive[f] and u < o and try_flip(u, o, V, F, head, tail, nxt, falive, locked,
+                                                    mark, tag, buf, min_cos, max_gap, below):
+                    done += 1
         flips += done
         if done == 0:
             break
