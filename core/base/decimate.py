@@ -20,6 +20,7 @@ from .collapse import (RING, STATUS_EXHAUSTED, STATUS_GROW, STATUS_STEPS, STATUS
 from .flip import flip_all
 from .links import build_lists, link_ok, ring
 from .quadrics import vertex_quadrics
+from .topology import locked_vertices
 
 SLICE = 4000         # collapses per compiled call between progress reports
 FLIP_PASSES = 20     # the final flips stop after this many passes over the edges
@@ -126,25 +127,6 @@ def _run(V, F, Q, W, isb, locked, valive, falive, head, tail, nxt, stamp, mark, 
                                                    falive, smooth, alpha, q, scratch)
                 if ok and err <= max_err:
                     hsize = heap.push(hc, hi, hsize, cost, a, b, stamp[a], stamp[b])
-
-
-def locked_vertices(mesh: TriMesh) -> np.ndarray:
-    """Vertices that may not move: on non-manifold edges, where several fans of faces meet
-    (a pinch: two holes through one vertex), and next to a pinch. An edge between two of them
-    never collapses, so no edge at a pinch does: the link condition assumes one fan, and
-    collapsing a neighbour into a pinch could close one of its holes."""
-    locked = np.zeros(mesh.n_vertices, bool)
-    locked[mesh.edges[mesh.nonmanifold_edges].reshape(-1)] = True
-    bnd = mesh.edges[mesh.boundary_edges].reshape(-1)
-    nb = np.bincount(bnd, minlength=mesh.n_vertices)
-    ptr, _ = mesh.vertex_faces_csr
-    nbr, _ = mesh.vertex_neighbors_csr
-    faces, valence = np.diff(ptr), np.diff(nbr)
-    # a closed fan has valence faces, an open one one fewer
-    pinch = (nb > 2) | (faces < valence - (nb > 0))
-    e = mesh.edges
-    locked[e[pinch[e[:, 0]] | pinch[e[:, 1]]].reshape(-1)] = True
-    return locked | pinch
 
 
 def decimate(mesh: TriMesh, target_faces: int, max_error: float = np.inf,

@@ -1,5 +1,5 @@
 """Topology of a mesh in the terms a user checks a base mesh by, and the differences between
-an input and its base in words."""
+an input and its base in words, and the vertices where the surface is pinched."""
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
@@ -60,3 +60,22 @@ def differences(reference: Topology, base: Topology) -> list[str]:
         out.append(f"the base has {base.nonmanifold_edges} non-manifold edges, the input "
                    f"{reference.nonmanifold_edges}")
     return out
+
+
+def locked_vertices(mesh: TriMesh) -> np.ndarray:
+    """Vertices that may not move: on non-manifold edges, where several fans of faces meet
+    (a pinch: two holes through one vertex), and next to a pinch. An edge between two of them
+    never collapses, so no edge at a pinch does: the link condition assumes one fan, and
+    collapsing a neighbour into a pinch could close one of its holes."""
+    locked = np.zeros(mesh.n_vertices, bool)
+    locked[mesh.edges[mesh.nonmanifold_edges].reshape(-1)] = True
+    bnd = mesh.edges[mesh.boundary_edges].reshape(-1)
+    nb = np.bincount(bnd, minlength=mesh.n_vertices)
+    ptr, _ = mesh.vertex_faces_csr
+    nbr, _ = mesh.vertex_neighbors_csr
+    faces, valence = np.diff(ptr), np.diff(nbr)
+    # a closed fan has valence faces, an open one one fewer
+    pinch = (nb > 2) | (faces < valence - (nb > 0))
+    e = mesh.edges
+    locked[e[pinch[e[:, 0]] | pinch[e[:, 1]]].reshape(-1)] = True
+    return locked | pinch
