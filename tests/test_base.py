@@ -113,7 +113,9 @@ def test_error_bound_holds_and_stops_early():
         assert b.report["error_mean"] <= bound
         assert b.mesh.n_faces > loose.mesh.n_faces         # the bound stopped it early...
         assert b.report["stopped"] == "limit" and "instead of" in b.report["notes"][0]  # says so
+        assert b.report["rejected"]["error"] > 0             # ...and the report says which check
     assert loose.report["error_mean"] > 1e-3
+    assert loose.report["rejected"]["error"] == 0
 
 
 def test_triangles_stay_well_shaped():

@@ -35,8 +35,10 @@ class Decimation:
     """The decimated mesh and how the decimation ended.
 
     ``stopped``: "target" (reached ``target_faces``) or "limit" (no collapse left within the
-    error bound, the topology and the shape limits). ``rejected``: how many popped collapses
-    each check refused (error, topology, geometry). ``flips``: edges the final pass flipped.
+    error bound, the topology and the shape limits). ``rejected``: how often each check
+    refused a collapse: the error bound whenever an edge was evaluated (an edge over it is
+    not queued), the topology and the shapes when one came off the queue. ``flips``: edges
+    the final pass flipped.
     """
 
     vertices: np.ndarray
@@ -49,7 +51,7 @@ class Decimation:
 
 @kernel(cache=True)
 def _push_all(V, F, Q, W, isb, locked, head, nxt, falive, valive, stamp, edges, hc, hi,
-              smooth, alpha, max_err):  # pragma: no cover - compiled
+              smooth, alpha, max_err, rejected):  # pragma: no cover - compiled
     q = np.empty(10)
     scratch = np.empty((6, 3))
     n = 0
@@ -59,6 +61,8 @@ def _push_all(V, F, Q, W, isb, locked, head, nxt, falive, valive, stamp, edges, 
                                            smooth, alpha, q, scratch)
         if ok and err <= max_err:
             n = heap.push(hc, hi, n, cost, a, b, stamp[a], stamp[b])
+        elif ok:
+            rejected[0] += 1
     return n
 
 
@@ -127,6 +131,8 @@ def _run(V, F, Q, W, isb, locked, valive, falive, head, tail, nxt, stamp, mark, 
                                                    falive, smooth, alpha, q, scratch)
                 if ok and err <= max_err:
                     hsize = heap.push(hc, hi, hsize, cost, a, b, stamp[a], stamp[b])
+                elif ok:
+                    rejected[0] += 1
 
 
 def decimate(mesh: TriMesh, target_faces: int, max_error: float = np.inf,
@@ -166,7 +172,7 @@ def decimate(mesh: TriMesh, target_faces: int, max_error: float = np.inf,
     min_dot = float(np.cos(np.radians(max_normal_angle_deg)))
     hc, hi = heap.new_heap(4 * len(mesh.edges) + 4 * RING)
     hsize = _push_all(V, F, Q, W, isb, locked, head, nxt, falive, valive, stamp, mesh.edges,
-                      hc, hi, smooth, length_weight, max_err)
+                      hc, hi, smooth, length_weight, max_err, rejected)
     n_faces, steps, total = len(F), 0, 0
     target = max(int(target_faces), 1)
     while True:
