@@ -50,6 +50,17 @@ class Decimation:
 
 
 @kernel(cache=True)
+def _offer(hc, hi, n, ok, err, cost, a, b, stamp, max_err, rejected):  # pragma: no cover
+    """Queue the evaluated collapse of edge (a, b) if it is allowed and within the error
+    bound, else count it as refused by the bound; returns the heap's new size."""
+    if ok and err <= max_err:
+        return heap.push(hc, hi, n, cost, a, b, stamp[a], stamp[b])
+    if ok:
+        rejected[0] += 1
+    return n
+
+
+@kernel(cache=True)
 def _push_all(V, F, Q, W, isb, locked, head, nxt, falive, valive, stamp, edges, hc, hi,
               smooth, alpha, max_err, rejected):  # pragma: no cover - compiled
     q = np.empty(10)
@@ -59,10 +70,7 @@ def _push_all(V, F, Q, W, isb, locked, head, nxt, falive, valive, stamp, edges, 
         a, b = edges[i, 0], edges[i, 1]
         ok, err, cost, x, y, z = candidate(a, b, V, F, Q, W, isb, locked, head, nxt, falive,
                                            smooth, alpha, q, scratch)
-        if ok and err <= max_err:
-            n = heap.push(hc, hi, n, cost, a, b, stamp[a], stamp[b])
-        elif ok:
-            rejected[0] += 1
+        n = _offer(hc, hi, n, ok, err, cost, a, b, stamp, max_err, rejected)
     return n
 
 
@@ -129,10 +137,7 @@ def _run(V, F, Q, W, isb, locked, valive, falive, head, tail, nxt, stamp, mark, 
                 a, b = min(w, o), max(w, o)
                 ok, err, cost, x, y, z = candidate(a, b, V, F, Q, W, isb, locked, head, nxt,
                                                    falive, smooth, alpha, q, scratch)
-                if ok and err <= max_err:
-                    hsize = heap.push(hc, hi, hsize, cost, a, b, stamp[a], stamp[b])
-                elif ok:
-                    rejected[0] += 1
+                hsize = _offer(hc, hi, hsize, ok, err, cost, a, b, stamp, max_err, rejected)
 
 
 def decimate(mesh: TriMesh, target_faces: int, max_error: float = np.inf,
