@@ -67,8 +67,9 @@ def build_bvh(tri_lo, tri_hi, cent, leaf_size):  # pragma: no cover - compiled
                 bhi[a] = max(bhi[a], tri_hi[f, a])
                 clo[a] = min(clo[a], cent[f, a])
                 chi[a] = max(chi[a], cent[f, a])
-        node_lo[nd] = blo
-        node_hi[nd] = bhi
+        for a in range(3):  # element by element: a row assignment compiles a shape check
+            node_lo[nd, a] = blo[a]      # whose error message costs 5 s of first-run compile
+            node_hi[nd, a] = bhi[a]
         axis = 0
         ext = chi[0] - clo[0]
         for a in range(1, 3):

@@ -24,6 +24,7 @@ from ..normalization import unit_sphere_normalization
 from ..micromesh import MicroMesh
 from ..render import warm_up
 from ..settings import ConstructSettings
+from ..runtime import precompile
 from ..runtime.determinism import deterministic
 from ..runtime.machine import available_memory_bytes, peak_resident_bytes
 from ..runtime.threads import set_threads
@@ -37,7 +38,7 @@ from .scene import Scene, bake
 from .schedule import Schedule
 from .state import RunState
 from .views import check_views
-from .types import ConstructError, ConstructResult, Progress
+from .types import ConstructCancelled, ConstructError, ConstructResult, Progress
 
 
 def construct(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
@@ -108,6 +109,16 @@ def _initial_micromesh(run: RunState) -> MicroMesh:
     return mm.with_displacements(bake(mm, run.scene.ref, run.bake_distance))
 
 
+def _compile_kernels(progress, should_stop) -> None:
+    """The listed kernels the cache lacks, compiled in parallel (``runtime.precompile``)."""
+    report = None if progress is None else (
+        lambda done, total: progress(Progress("compiling kernels", done, total, float("nan"),
+                                              float("nan"), float("nan"))))
+    precompile.ensure(report, should_stop)
+    if should_stop is not None and should_stop():
+        raise ConstructCancelled("construction cancelled")
+
+
 def _construct(reference, base, cameras, settings, progress, should_stop, levels) -> ConstructResult:
     s = settings.validate()
     if base is None:
@@ -120,9 +131,10 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     check_fits(guess, available_memory_bytes())
     set_threads(s.threads)
     dev = torch_device(s.device)
-    # Compile the renderer's kernels first: a fresh checkout's JIT (about a minute) must not
-    # eat the time limit or distort the ETA. The time limit counts from here, the base
-    # building included.
+    # Compile the kernels first: a fresh checkout's JIT (minutes on 2 cores, halved by one
+    # compiling process per core) must not eat the time limit or distort the ETA. The time
+    # limit counts from here, the base building included.
+    _compile_kernels(progress, should_stop)
     warm_up(dev, antialias=s.antialias)
     t_start = time.perf_counter()
     if progress is not None:   # loose parts, repeated faces and the winding (seconds at 1M)

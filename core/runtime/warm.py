@@ -4,7 +4,8 @@ numba compiles a kernel at its first call and keeps it in its on-disk cache (``j
 construction on a fresh install pays for all of them before its first iteration. :func:`warm`
 runs a tiny construction with the default preset, which calls every kernel a default
 construction calls (base builder, closest points, baking, renderer forward and backward,
-metrics), so they are compiled and cached; :func:`is_warm` says whether that is done for this
+metrics), so they are compiled and cached (the construction compiles the listed ones in one
+process per core first: ``precompile``); :func:`is_warm` says whether that is done for this
 source and this import name. :func:`command` is the command line that does it in a process
 of its own (the add-on starts it in the background when it is enabled).
 
@@ -14,9 +15,11 @@ features): an entry compiled on another machine is never served, it is compiled 
 from __future__ import annotations
 
 import importlib
-import sys
+import os
 import time
 from typing import Callable
+
+from . import child
 
 # Its index file exists once the kernels are cached: the last kernel a construction compiles
 _SENTINEL = ("render.silhouette", "pair_codes")
@@ -59,27 +62,22 @@ def is_warm() -> bool:
     return any(key[1] == magic for key in index)
 
 
+def main(action: str = "warm") -> None:
+    """Entry point of :func:`command`'s process."""
+    cached = is_warm()
+    if cached or action == "is_warm":
+        print("warm: kernels cached:", cached, flush=True)
+        return
+    if hasattr(os, "nice"):
+        os.nice(10)
+    print(f"warm: kernels ready in {warm():.1f} s", flush=True)
+
+
 def command(package_root: str, package_name: str, extra_paths: list[str],
             action: str = "warm") -> list[str]:
     """A command line that imports the package at ``package_root`` as ``package_name`` (so
     the cache entries carry the caller's import name) and, where the kernels are not cached
     for this CPU yet, warms them (``action`` "warm", at a low priority); "is_warm" only says
     whether they are. ``extra_paths`` go first on ``sys.path`` (the dependency folder)."""
-    code = ("import importlib, importlib.util, os, sys\n"
-            "root, name, action = sys.argv[1:4]\n"
-            "sys.path[:0] = sys.argv[4:]\n"
-            "parts = name.split('.')\n"
-            "for i in range(1, len(parts)):   # empty parents (Blender's bl_ext.<repo>)\n"
-            "    p = sys.modules.setdefault('.'.join(parts[:i]), type(sys)('.'.join(parts[:i])))\n"
-            "    p.__path__ = getattr(p, '__path__', [])\n"
-            "spec = importlib.util.spec_from_file_location(name, os.path.join(root, "
-            "'__init__.py'), submodule_search_locations=[root])\n"
-            "m = importlib.util.module_from_spec(spec); sys.modules[name] = m\n"
-            "spec.loader.exec_module(m)\n"
-            "w = importlib.import_module(name + '.core.runtime.warm')\n"
-            "cached = w.is_warm()\n"
-            "if cached or action == 'is_warm':\n"
-            "    print('warm: kernels cached:', cached, flush=True); sys.exit(0)\n"
-            "if hasattr(os, 'nice'): os.nice(10)\n"
-            "print('warm: kernels ready in %.1f s' % w.warm(), flush=True)\n")
-    return [sys.executable, "-c", code, package_root, package_name, action, *extra_paths]
+    return child.command(package_root, package_name, extra_paths, "core.runtime.warm", "main",
+                         action)

@@ -1,0 +1,182 @@
+"""Compiling a construction's kernels in parallel processes before it starts.
+
+numba compiles one kernel at a time in a process: a default construction's kernels take about
+two minutes on a slow 2-core machine. The kernels a construction calls from Python and their
+signatures are listed in ``kernels.json`` (with the seconds each took to compile, to balance
+the processes); the kernels they call are compiled inside them. :func:`ensure` finds the
+listed kernels that the on-disk cache lacks for this CPU and compiles them in one process per
+core (longest first, each to the least loaded process), which write them to the cache; the
+construction then loads them. On one core it does nothing: the run compiles as it goes.
+
+``python -m core.runtime.precompile --write`` records the list again from the warm-up
+construction (``warm``) in a fresh process with an empty cache; a test checks that the list
+leaves the warm-up nothing to compile.
+"""
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Callable
+
+from .child import command, here
+
+LIST = Path(__file__).with_name("kernels.json")
+_CORE = __name__.rsplit(".", 2)[0]                         # <...>.core
+_RECORDING = False                                          # record(): ensure() does nothing
+
+
+def load() -> list[dict]:
+    """The listed kernels: {"module" (relative to core), "name", "signature", "seconds"}."""
+    return json.loads(LIST.read_text(encoding="utf-8"))["kernels"]
+
+
+def signature(text: str) -> tuple:
+    """A signature as numba prints it (``repr`` of its tuple of types) back into types."""
+    from numba.core import types
+
+    names = {k: getattr(types, k) for k in dir(types) if not k.startswith("_")}
+    names["bool"] = types.boolean
+    sig = eval(text, {"__builtins__": {}}, names)          # noqa: S307  (our own list)
+    return tuple(sig)
+
+
+def _dispatcher(entry: dict):
+    return getattr(importlib.import_module(f"{_CORE}.{entry['module']}"), entry["name"])
+
+
+def cached(entry: dict) -> bool:
+    """Whether the on-disk cache holds ``entry`` compiled for this CPU and this source."""
+    from numba.core.registry import cpu_target
+
+    cache = getattr(_dispatcher(entry), "_cache", None)
+    try:
+        key = cache._index_key(signature(entry["signature"]), cpu_target.target_context.codegen())
+        return key in cache._cache_file._load_index()
+    except Exception:  # noqa: BLE001  (no cache, or numba's internals moved: not cached)
+        return False
+
+
+def split(entries: list[dict], n: int) -> list[list[dict]]:
+    """``entries`` in ``n`` parts of about equal seconds: longest first, each to the part
+    with the fewest seconds so far."""
+    parts: list[list[dict]] = [[] for _ in range(n)]
+    loads = [0.0] * n
+    for e in sorted(entries, key=lambda e: -e["seconds"]):
+        k = loads.index(min(loads))
+        parts[k].append(e)
+        loads[k] += e["seconds"]
+    return parts
+
+
+def compile_listed(*indices: str) -> None:
+    """Compile the listed kernels at ``indices`` (their positions in the list) in this
+    process; the entry point of each compiling process."""
+    entries = load()
+    for i in indices:
+        e = entries[int(i)]
+        _dispatcher(e).compile(signature(e["signature"]))
+
+
+def usable_cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # macOS, Windows
+        return os.cpu_count() or 1
+
+
+def ensure(progress: Callable[[int, int], None] | None = None,
+           should_stop: Callable[[], bool] | None = None, processes: int | None = None) -> int:
+    """Compile the listed kernels that the cache lacks, in ``processes`` processes (default:
+    one per usable core, at most 4); returns how many were missing (0 where it did nothing:
+    all cached, or one core). ``progress(done, total)`` about twice a second; ``should_stop()`` ends
+    the processes (what they finished stays cached)."""
+    if _RECORDING:
+        return 0
+    entries = load()
+    index = {id(e): i for i, e in enumerate(entries)}
+    missing = [e for e in entries if not cached(e)]
+    n = min(processes or min(usable_cores(), 4), len(missing))
+    if n <= 1:
+        return 0
+    root, package = here()
+    paths = [p for p in sys.path if p and p != root]
+    logs = [tempfile.TemporaryFile() for _ in range(n)]
+    procs = [subprocess.Popen(command(root, package, paths, "core.runtime.precompile",
+                                      "compile_listed", *(index[id(e)] for e in part)),
+                              stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
+             for part, log in zip(split(missing, n), logs)]
+    try:
+        while any(p.poll() is None for p in procs):
+            if should_stop is not None and should_stop():
+                break
+            if progress is not None:
+                progress(sum(cached(e) for e in missing), len(missing))
+            time.sleep(0.5)
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.terminate()
+            p.wait()
+    for p, log in zip(procs, logs):  # a failure costs time only: the run compiles the rest
+        if p.returncode > 0:
+            log.seek(0)
+            print(f"precompile: a compiling process failed:\n{log.read().decode()[-2000:]}",
+                  file=sys.stderr)
+        log.close()
+    return len(missing)
+
+
+def record() -> list[dict]:
+    """The kernels the warm-up construction compiles from Python, with their signatures and
+    seconds (run it with an empty cache: kernels loaded from the cache are not seen)."""
+    from numba.core import event
+
+    from .jit import _NamedCache
+    from .warm import warm
+
+    found, stack = [], []
+
+    class Listener(event.Listener):
+        def on_start(self, ev):
+            stack.append(time.perf_counter())
+
+        def on_end(self, ev):
+            seconds = time.perf_counter() - stack.pop()
+            d = ev.data["dispatcher"]
+            if not stack and isinstance(getattr(d, "_cache", None), _NamedCache):
+                found.append({"module": d.py_func.__module__[len(_CORE) + 1:],
+                              "name": d.py_func.__name__, "signature": repr(ev.data["args"]),
+                              "seconds": round(seconds, 2)})
+
+    global _RECORDING
+    event.register("numba:compile", Listener())
+    _RECORDING = True
+    try:
+        warm()
+    finally:
+        _RECORDING = False
+    return sorted(found, key=lambda e: (e["module"], e["name"], e["signature"]))
+
+
+def _write() -> None:
+    entries = record()
+    if not entries:
+        raise SystemExit("nothing compiled: the cache is warm; run with an empty NUMBA_CACHE_DIR")
+    text = json.dumps({"about": "kernels a construction calls from Python, their signatures "
+                                "and compile seconds (python -m core.runtime.precompile "
+                                "--write, with an empty cache)", "kernels": entries}, indent=1)
+    LIST.write_text(text + "\n", encoding="utf-8")
+    print(f"{len(entries)} kernels, {sum(e['seconds'] for e in entries):.1f} s, in {LIST}")
+
+
+if __name__ == "__main__":      # from the repository root, core importable as "core"
+    if sys.argv[1:] != ["--write"]:
+        raise SystemExit("usage: NUMBA_CACHE_DIR=<empty folder> python -m "
+                         "core.runtime.precompile --write")
+    importlib.import_module("core.runtime.precompile")._write()

@@ -1,0 +1,95 @@
+"""Compiling the listed kernels in parallel processes (core/runtime/precompile.py): the list
+parses back into numba's types, its parts are balanced, and from an empty cache a construction
+compiles the listed kernels in processes of their own (phase "compiling kernels") and itself
+compiles none of them; a stop request ends those processes at once."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+COLD_RUN = r"""
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from numba.core import event
+from core.runtime import precompile
+from core.runtime.jit import _NamedCache
+listed = {(e["module"], e["name"]) for e in precompile.load()}
+here = []
+class Rec(event.Listener):
+    depth = 0
+    def on_start(self, ev): Rec.depth += 1
+    def on_end(self, ev):
+        Rec.depth -= 1
+        d = ev.data["dispatcher"]
+        if Rec.depth == 0 and isinstance(getattr(d, "_cache", None), _NamedCache):
+            here.append((d.py_func.__module__[len("core."):], d.py_func.__name__))
+event.register("numba:compile", Rec())
+missing = sum(not precompile.cached(e) for e in precompile.load())
+from core.runtime.warm import warm, is_warm
+phases = []
+warm(progress=phases.append)
+print(json.dumps({"missing_before": missing, "phases": sorted(set(phases)),
+                  "listed_compiled_here": sorted(set(here) & listed),
+                  "cached_after": sum(precompile.cached(e) for e in precompile.load()),
+                  "warm": is_warm()}))
+"""
+
+STOP = r"""
+import sys, time
+sys.path.insert(0, sys.argv[1])
+from core.runtime import precompile
+t = time.perf_counter()
+n = precompile.ensure(should_stop=lambda: True, processes=2)
+print(n, time.perf_counter() - t)
+"""
+
+
+def _child(code: str, cache: Path) -> str:
+    r = subprocess.run([sys.executable, "-c", code, str(ROOT)], capture_output=True, text=True,
+                       env={**os.environ, "NUMBA_CACHE_DIR": str(cache)}, timeout=1200)
+    assert r.returncode == 0, r.stderr
+    return r.stdout.strip().splitlines()[-1]
+
+
+def test_listed_signatures_parse_back():
+    from core.runtime import precompile
+
+    entries = precompile.load()
+    assert entries
+    for e in entries:
+        assert repr(precompile.signature(e["signature"])) == e["signature"]
+        assert callable(precompile._dispatcher(e).py_func)
+
+
+def test_split_balances_the_seconds():
+    from core.runtime.precompile import split
+
+    entries = [{"name": str(i), "seconds": s} for i, s in enumerate([9, 7, 5, 4, 3, 3, 1])]
+    parts = split(entries, 2)
+    assert sorted(e["name"] for p in parts for e in p) == sorted(e["name"] for e in entries)
+    loads = [sum(e["seconds"] for e in p) for p in parts]
+    assert max(loads) - min(loads) <= 2, loads
+    assert split(entries[:1], 3)[1:] == [[], []]
+
+
+def test_cold_cache_compiles_the_list_in_processes_of_its_own(tmp_path):
+    """From an empty cache: every listed kernel is missing, the warm-up construction reports
+    "compiling kernels", compiles none of the listed kernels itself and leaves all cached."""
+    r = json.loads(_child(COLD_RUN, tmp_path))
+    from core.runtime import precompile
+
+    n = len(precompile.load())
+    assert r["missing_before"] == n
+    assert "compiling kernels" in r["phases"]
+    assert r["listed_compiled_here"] == []
+    assert r["cached_after"] == n and r["warm"]
+
+
+def test_stop_ends_the_compiling_processes(tmp_path):
+    n, seconds = _child(STOP, tmp_path).split()
+    assert int(n) > 0 and float(seconds) < 20.0     # compiling them takes a minute or more
