@@ -70,7 +70,7 @@ def build_bvh(tri_lo, tri_hi, cent, leaf_size):  # pragma: no cover - compiled
         for a in range(3):  # element by element: a row assignment compiles a shape check
             node_lo[nd, a] = blo[a]      # whose error message costs 5 s of first-run compile
             node_hi[nd, a] = bhi[a]
-        axis = 0
+        axis = np.int64(0)   # not a literal 0, which compiles _select once more
         ext = chi[0] - clo[0]
         for a in range(1, 3):
             if chi[a] - clo[a] > ext:

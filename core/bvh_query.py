@@ -53,7 +53,7 @@ def _query_block(s0, s1, pts, md2, lo, hi, child, start, count, A, B, C, flat, f
         bf = -1
         bx, by, bz = np.nan, np.nan, np.nan
         top = 0
-        d0 = _box_d2(px, py, pz, lo, hi, 0)
+        d0 = _box_d2(px, py, pz, lo, hi, np.int64(0))   # not a literal (one compile less)
         if d0 <= best:
             st[0], sd[0] = 0, d0
             top = 1

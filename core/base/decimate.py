@@ -65,7 +65,7 @@ def _push_all(V, F, Q, W, isb, locked, head, nxt, falive, valive, stamp, edges, 
               smooth, alpha, max_err, rejected):  # pragma: no cover - compiled
     q = np.empty(10)
     scratch = np.empty((6, 3))
-    n = 0
+    n = np.int64(0)   # a literal 0 would compile a second _offer for it (first-run seconds)
     for i in range(edges.shape[0]):
         a, b = edges[i, 0], edges[i, 1]
         ok, err, cost, x, y, z = candidate(a, b, V, F, Q, W, isb, locked, head, nxt, falive,
@@ -96,7 +96,7 @@ def _run(V, F, Q, W, isb, locked, valive, falive, head, tail, nxt, stamp, mark, 
             hsize = heap.compact(hc, hi, hsize, stamp, valive)
             if hsize + 2 * RING > cap:
                 return hsize, n_faces, steps, STATUS_GROW
-        current = heap.is_current(hi, 0, stamp, valive)
+        current = heap.is_current(hi, np.int64(0), stamp, valive)
         u, v = hi[0, 0], hi[0, 1]
         hsize = heap.pop(hc, hi, hsize)
         if not current:

@@ -75,8 +75,8 @@ def pop(cost, item, size):  # pragma: no cover - compiled
     """Remove the smallest entry, which the caller has read at index 0; returns the new size."""
     size -= 1
     if size > 0:
-        _swap(cost, item, 0, size)
-        _sift_down(cost, item, size, 0)
+        _swap(cost, item, np.int64(0), size)   # np.int64: a literal 0 compiles them again
+        _sift_down(cost, item, size, np.int64(0))
     return size
 
 
