@@ -68,7 +68,11 @@ def test_short_run_beats_staged_baseline(scene, device):
     assert r.metrics["cracks"] == 0 and b.metrics["cracks"] == 0
     assert (r.micromesh.levels == 2).all()
     assert [p.phase for p in seen].count("optimize") == 60 and seen[-1].phase == "done"
-    assert seen[0].phase == "reference"      # the reference's checks and winding first
+    # The reference's checks and winding first; a cold kernel cache (a fresh checkout, CI)
+    # compiles the listed kernels before that.
+    compiling = [p.phase for p in seen].count("compiling kernels")
+    seen = seen[compiling:]
+    assert seen[0].phase == "reference" and all(p.phase != "compiling kernels" for p in seen)
     assert all(p.iteration <= p.total_iterations for p in seen)
     # After the optimiser, one report as each later phase begins (the base's and the
     # directions' rounds once per pass), with the time left.
