@@ -1,6 +1,6 @@
 """Add-on preferences: compute device, thread count, cache folder, optional dependencies.
 
-Threads go through ``core.runtime.threads.set_threads`` (the one place that pins torch's and numba's
+Threads go through ``core.runtime.threads.set_threads`` (the one place that pins torch's and our
 pools). The cache folder defaults to the extension's user folder
 (``bpy.utils.extension_path_user``), which Blender keeps across upgrades of the extension.
 """
@@ -61,7 +61,7 @@ class MICROMESH_AP_preferences(bpy.types.AddonPreferences):
         ("CPU", "CPU", "Always the CPU"),
         ("CUDA", "CUDA", "An NVIDIA GPU through torch (fails if none)")])
     threads: IntProperty(name="Threads", default=0, min=0, max=256,
-                         description="CPU threads for torch and numba (0: all usable cores)")
+                         description="CPU threads for torch and the kernels (0: all usable cores)")
     cache_dir: StringProperty(name="Cache Folder", subtype="DIR_PATH", default="",
                               description="Where reports and caches go (empty: the extension's user folder)")
     torch_build: EnumProperty(name="torch", default="CPU", items=[

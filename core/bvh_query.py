@@ -1,7 +1,8 @@
-"""Nearest triangles in a BVH (:mod:`core.bvh`), in parallel (``prange`` over blocks of
-points): depth-first traversal with an explicit stack per block, the nearer child first,
-subtrees pruned by their box distance against the best squared distance so far (initially
-the caller's bound), exact point–triangle closest points (:mod:`core.point_triangle`).
+"""Nearest triangles in a BVH (:mod:`core.bvh`), in parallel (blocks of points, on
+``runtime.threads.parallel_for``): depth-first traversal with an explicit stack per block,
+the nearer child first, subtrees pruned by their box distance against the best squared
+distance so far (initially the caller's bound), exact point–triangle closest points
+(:mod:`core.point_triangle`).
 Results do not depend on the thread count: each point's traversal is sequential and
 deterministic, so ties between triangles always resolve the same way. The index around it:
 :class:`core.closest.ClosestPointIndex`.
@@ -9,9 +10,9 @@ deterministic, so ties between triangles always resolve the same way. The index 
 from __future__ import annotations
 
 import numpy as np
-from numba import prange
 
 from .point_triangle import closest_on_triangle
+from .runtime.borrow import borrow
 from .runtime.jit import kernel
 
 _STACK = 128          # > tree depth (≈ log2(m / leaf size) + a few for duplicate centroids)
@@ -91,17 +92,19 @@ def _query_block(s0, s1, pts, md2, lo, hi, child, start, count, A, B, C, flat, f
         out_d2[i] = best if bf >= 0 else np.inf
 
 
-@kernel(cache=True, parallel=True)
+@kernel(cache=True, nogil=True, error_model="numpy")
 def query_nearest(pts, md2, lo, hi, child, start, count, A, B, C, flat, fid, block,
-                  out_p, out_f, out_d2):  # pragma: no cover - compiled
+                  out_p, out_f, out_d2, b0, b1):  # pragma: no cover - compiled
     """For each point of ``pts`` (n, 3), the nearest triangle within ``sqrt(md2)``: its
     closest point into ``out_p`` (n, 3), its face (``fid`` of its leaf slot) into ``out_f``
     (n,) and the squared distance into ``out_d2`` (n,); face -1, NaN and inf where none lies
     within. ``lo``..``count``: the tree (:func:`core.bvh.build_bvh`); ``A``, ``B``, ``C``
     (m, 3) and ``flat`` (m,): the triangles' corners in leaf order and which are degenerate;
-    ``block`` points per parallel work item."""
+    ``block`` points per work item; blocks ``b0``..``b1 - 1`` of them."""
+    pts, md2, lo, hi, child = borrow(pts), borrow(md2), borrow(lo), borrow(hi), borrow(child)
+    start, count, A, B, C, flat = borrow(start), borrow(count), borrow(A), borrow(B), borrow(C), borrow(flat)
+    fid, out_p, out_f, out_d2 = borrow(fid), borrow(out_p), borrow(out_f), borrow(out_d2)
     n = pts.shape[0]
-    nb = (n + block - 1) // block
-    for b in prange(nb):
+    for b in range(b0, b1):  # blocks of points: ceil(n / block)
         _query_block(b * block, min(n, (b + 1) * block), pts, md2, lo, hi, child, start, count,
                      A, B, C, flat, fid, out_p, out_f, out_d2)

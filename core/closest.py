@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import weakref
 
-import numba
 import numpy as np
 
 from .bvh import build_bvh, refit_bvh
 from .bvh_query import query_nearest
 from .checks import as_points, per_point_distance
 from .mesh import TriMesh
+from .runtime.threads import parallel_for
 
 LEAF_SIZE = 4
 _BLOCK = 256          # points per parallel work item
@@ -31,7 +31,7 @@ class ClosestPointIndex:
     """BVH over a triangle mesh for exact closest-point queries; build once, query often.
 
     ``vertices`` (n, 3) float, ``faces`` (m, 3) int. Degenerate triangles are allowed (they act
-    as segments or points). Queries run on numba's thread pool (``core.runtime.threads.set_threads``).
+    as segments or points). Queries run on ``core.runtime.threads.parallel_for``.
     """
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray) -> None:
@@ -90,7 +90,7 @@ class ClosestPointIndex:
 
         ``max_distance`` (scalar or (n,)) bounds the search: where no triangle lies within it the
         point gets distance ``inf``, face −1 and closest NaN. Smaller bounds query faster.
-        ``threads``: numba threads for this call only (default: the pool's setting).
+        ``threads``: threads for this call only (default: ``runtime.threads.threads()``).
         """
         q = as_points(points, "points", ClosestPointError)
         n = len(q)
@@ -99,14 +99,9 @@ class ClosestPointIndex:
         out_f = np.empty(n, np.int64)
         out_d2 = np.empty(n)
         if n:
-            old = numba.get_num_threads()
-            if threads:  # numba's thread count is thread-local: restoring it is safe
-                numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
-            try:
-                query_nearest(np.ascontiguousarray(q), md * md * (1 + 1e-14), *self._nodes, self._A, self._B, self._C,
-                       self._flat, self._fid, _BLOCK, out_p, out_f, out_d2)
-            finally:
-                numba.set_num_threads(old)
+            parallel_for(query_nearest, -(-n // _BLOCK), np.ascontiguousarray(q),
+                         md * md * (1 + 1e-14), *self._nodes, self._A, self._B, self._C,
+                         self._flat, self._fid, _BLOCK, out_p, out_f, out_d2, workers=threads)
         dist = np.sqrt(out_d2)
         out = dist > md  # searched with a hair more than md²: keep the bound exact in distance
         if out.any():

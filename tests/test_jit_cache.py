@@ -27,7 +27,7 @@ before = warm.is_warm()
 verts = np.random.default_rng(0).random((4, 3)).astype(np.float32)
 faces = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64)
 fn = np.zeros((2, 3), np.float32)
-_face_normals(verts, faces, fn)
+_face_normals(verts, faces, fn, 0, 2)
 print("warm_before", before, "compiled", compiled.count("_face_normals"),
       "warm_after", warm.is_warm())
 """

@@ -12,8 +12,9 @@ pair's vertex gradient is scattered once, into per-slot buffers as in ``shade``.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
+from ..runtime.borrow import borrow
 from ..runtime.jit import kernel
 from .pixel import add_vertex_grad
 from .silhouette import screen
@@ -60,13 +61,17 @@ def _l1_row(img_row, target_row, sign_row):
     return acc
 
 
-@kernel(parallel=True)
-def antialias_forward(color, verts, faces, mvp, code_h, code_v, out, target, sign, rowsum, fuse_l1):
+@kernel(nogil=True, error_model="numpy")
+def antialias_forward(color, verts, faces, mvp, code_h, code_v, out, target, sign, rowsum, fuse_l1,
+                      lo, hi):
     """out <- antialiased color. With ``fuse_l1`` instead sign <- sign(out - target) (int8) and
     rowsum[row] <- sum |out - target| over the row (the L1 loss without another image pass; the
     image only passes through a row buffer and ``out`` is not touched)."""
+    color, verts, faces, mvp = borrow(color), borrow(verts), borrow(faces), borrow(mvp)
+    code_h, code_v, out, target = borrow(code_h), borrow(code_v), borrow(out), borrow(target)
+    sign, rowsum = borrow(sign), borrow(rowsum)
     nb, height, width, nc = color.shape
-    for row in prange(nb * height):
+    for row in range(lo, hi):  # rows of all views: nb * height
         b, r = row // height, row % height
         m = mvp[b]
         o = np.empty((width, nc), color.dtype) if fuse_l1 else out[b, r]
@@ -89,27 +94,29 @@ def antialias_forward(color, verts, faces, mvp, code_h, code_v, out, target, sig
     return 0
 
 
-@kernel(parallel=True)
-def l1_forward(img, target, sign, rowsum):
+@kernel(nogil=True, error_model="numpy")
+def l1_forward(img, target, sign, rowsum, lo, hi):
     """sign <- sign(img - target) (int8), rowsum[row] <- sum over the row of |img - target|."""
     nb, height, width = img.shape[:3]
-    for row in prange(nb * height):
+    for row in range(lo, hi):  # nb * height
         b, r = row // height, row % height
         rowsum[row] = _l1_row(img[b, r], target[b, r], sign[b, r])
     return 0
 
 
-@kernel(parallel=True)
-def antialias_backward(color, verts, faces, mvp, code_h, code_v, gout, gscale, gcolor, gv):
+@kernel(nogil=True, error_model="numpy")
+def antialias_backward(color, verts, faces, mvp, code_h, code_v, gout, gscale, gcolor, gv, lo, hi):
     """gcolor (B, H, W, C) <- d/d color; gv (SLOTS, N, 3) <- per-slot parts of d/d verts.
 
     ``gout`` may be a float image or an int8 sign image (fused L1 loss); it is scaled by
     ``gscale``."""
+    color, verts, faces, mvp = borrow(color), borrow(verts), borrow(faces), borrow(mvp)
+    code_h, code_v, gout, gcolor, gv = borrow(code_h), borrow(code_v), borrow(gout), borrow(gcolor), borrow(gv)
     nb, height, width, nc = color.shape
     nslot = gv.shape[0]
     nrows = nb * height
     hw, hh = 0.5 * width, 0.5 * height
-    for k in prange(nslot):
+    for k in range(lo, hi):  # slots
         gvk = gv[k]
         gvk[:] = 0.0
         for row in range(k * nrows // nslot, (k + 1) * nrows // nslot):

@@ -10,16 +10,15 @@ import math
 
 import numpy as np
 import torch
-from numba import prange
-
 from ..runtime.jit import kernel
+from ..runtime.threads import parallel_for
 from .geometry import NORMAL_EPS
 from .topology import vertex_corners
 
 
-@kernel(parallel=True)
-def _face_normals(verts, faces, fn):
-    for f in prange(faces.shape[0]):
+@kernel(nogil=True, error_model="numpy")
+def _face_normals(verts, faces, fn, lo, hi):
+    for f in range(lo, hi):
         i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
         ax, ay, az = verts[i1, 0] - verts[i0, 0], verts[i1, 1] - verts[i0, 1], verts[i1, 2] - verts[i0, 2]
         bx, by, bz = verts[i2, 0] - verts[i0, 0], verts[i2, 1] - verts[i0, 1], verts[i2, 2] - verts[i0, 2]
@@ -29,9 +28,9 @@ def _face_normals(verts, faces, fn):
     return 0
 
 
-@kernel(parallel=True)
-def _vertex_forward(fn, ptr, corners, vn, inv):
-    for v in prange(len(ptr) - 1):
+@kernel(nogil=True, error_model="numpy")
+def _vertex_forward(fn, ptr, corners, vn, inv, lo, hi):
+    for v in range(lo, hi):
         s0 = s1 = s2 = 0.0
         for j in range(ptr[v], ptr[v + 1]):
             f = corners[j] // 3
@@ -44,18 +43,18 @@ def _vertex_forward(fn, ptr, corners, vn, inv):
     return 0
 
 
-@kernel(parallel=True)
-def _vertex_backward(gvn, vn, inv, graw):
-    for v in prange(vn.shape[0]):
+@kernel(nogil=True, error_model="numpy")
+def _vertex_backward(gvn, vn, inv, graw, lo, hi):
+    for v in range(lo, hi):
         d = vn[v, 0] * gvn[v, 0] + vn[v, 1] * gvn[v, 1] + vn[v, 2] * gvn[v, 2]
         for j in range(3):
             graw[v, j] = (gvn[v, j] - vn[v, j] * d) * inv[v]
     return 0
 
 
-@kernel(parallel=True)
-def _verts_backward(verts, faces, graw, ptr, corners, gverts):
-    for v in prange(len(ptr) - 1):
+@kernel(nogil=True, error_model="numpy")
+def _verts_backward(verts, faces, graw, ptr, corners, gverts, lo, hi):
+    for v in range(lo, hi):
         s0 = s1 = s2 = 0.0
         for j in range(ptr[v], ptr[v + 1]):
             f, k = corners[j] // 3, corners[j] % 3
@@ -101,10 +100,10 @@ class VertexNormals(torch.autograd.Function):
         f = faces.contiguous().numpy()
         ptr, corners = _csr(faces, len(v))
         fn = np.empty((len(f), 3), v.dtype)
-        _face_normals(v, f, fn)
+        parallel_for(_face_normals, len(f), v, f, fn)
         vn = np.zeros((len(v), 3), v.dtype)
         inv = np.zeros(len(v), np.float64)
-        _vertex_forward(fn, ptr, corners, vn, inv)
+        parallel_for(_vertex_forward, len(v), fn, ptr, corners, vn, inv)
         ctx.save_for_backward(verts)
         ctx.stuff = (faces, vn, inv)
         return torch.from_numpy(vn)
@@ -116,10 +115,10 @@ class VertexNormals(torch.autograd.Function):
         v = verts.detach().contiguous().numpy()
         f = faces.contiguous().numpy()
         graw = np.empty_like(vn)
-        _vertex_backward(gvn.to(verts.dtype).contiguous().numpy(), vn, inv, graw)
+        parallel_for(_vertex_backward, len(vn), gvn.to(verts.dtype).contiguous().numpy(), vn, inv, graw)
         ptr, corners = _csr(faces, len(v))
         gverts = np.zeros_like(v)
-        _verts_backward(v, f, graw, ptr, corners, gverts)
+        parallel_for(_verts_backward, len(v), v, f, graw, ptr, corners, gverts)
         return torch.from_numpy(gverts), None
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from ..runtime.threads import parallel_for
 from . import antialias as aa
 from . import shade as sk
 from . import silhouette, slots
@@ -38,7 +39,8 @@ class _Shade(torch.autograd.Function):
         pv = np.concatenate([v, _np(vnormals).astype(v.dtype)], axis=1) if has_vn else v
         nc = 3 if mode in (sk.MODE_SHADED, sk.MODE_NORMAL, sk.MODE_FLAT) else 1
         out = np.zeros(t.shape + (nc,), dtype=v.dtype)
-        sk.shade_forward(pv, f, pv, 3 if has_vn else 0, m, t, mode, _QA, _QB, _QK, out)
+        parallel_for(sk.shade_forward, t.shape[0] * t.shape[1], pv, f, pv, 3 if has_vn else 0, m, t,
+                     mode, _QA, _QB, _QK, out)
         ctx.pv = pv
         ctx.stuff = (faces, mvp, tri, mode, has_vn, verts.dtype)
         return torch.from_numpy(out)
@@ -51,8 +53,8 @@ class _Shade(torch.autograd.Function):
         pv = ctx.pv
         width = 6 if has_vn else 3
         g = slots.slot_buffer("shade", len(pv), pv.dtype, width)
-        sk.shade_backward(pv, faces_int32(faces), pv, 3 if has_vn else 0, _np(mvp), _np(tri), mode,
-                          _QA, _QB, _QK, _np(gout.to(dtype)), g, g)
+        parallel_for(sk.shade_backward, len(g), pv, faces_int32(faces), pv, 3 if has_vn else 0, _np(mvp),
+                     _np(tri), mode, _QA, _QB, _QK, _np(gout.to(dtype)), g, g, parts=len(g))
         total = torch.from_numpy(slots.reduce(g))
         return total[:, :3], (total[:, 3:] if has_vn else None), None, None, None, None
 
@@ -64,7 +66,8 @@ def _codes(verts: np.ndarray, f: np.ndarray, m: np.ndarray, raster: Raster, vt: 
     flags = flags.numpy() if flags is not None else edge_flags_numba(vt, faces, raster.mvp, raster.tri_id)
     code_h = np.empty(t.shape, np.int32)
     code_v = np.empty(t.shape, np.int32)
-    silhouette.pair_codes(verts, f, face_neighbours_int32(faces), m, t, _np(raster.depth), flags, code_h, code_v)
+    parallel_for(silhouette.pair_codes, t.shape[0] * t.shape[1], verts, f, face_neighbours_int32(faces), m, t,
+                 _np(raster.depth), flags, code_h, code_v)
     return code_h, code_v
 
 
@@ -80,7 +83,8 @@ class _Antialias(torch.autograd.Function):
         tg = _np(target.to(color.dtype)) if fuse else c[:1, :1, :1, :1]
         sign = np.empty(c.shape, np.int8) if fuse else np.zeros((1, 1, 1, 1), np.int8)
         rowsum = np.zeros(c.shape[0] * c.shape[1])
-        aa.antialias_forward(c, v, f, m, code_h, code_v, out, tg, sign, rowsum, fuse)
+        parallel_for(aa.antialias_forward, len(rowsum), c, v, f, m, code_h, code_v, out, tg, sign,
+                     rowsum, fuse)
         ctx.save_for_backward(color, verts)
         ctx.stuff = (faces, m, code_h, code_v, sign if fuse else None, c.size)
         if fuse:
@@ -98,7 +102,8 @@ class _Antialias(torch.autograd.Function):
             g, scale = sign, float(gout) / count
         else:
             g, scale = _np(gout.to(color.dtype)), 1.0
-        aa.antialias_backward(c, v, faces_int32(faces), m, code_h, code_v, g, scale, gcolor, gv)
+        parallel_for(aa.antialias_backward, len(gv), c, v, faces_int32(faces), m, code_h, code_v, g, scale,
+                     gcolor, gv, parts=len(gv))
         return torch.from_numpy(gcolor), torch.from_numpy(slots.reduce(gv)), None, None, None
 
 
@@ -110,7 +115,7 @@ class _L1(torch.autograd.Function):
         a, t = _np(img), _np(target.to(img.dtype))
         sign = np.empty(a.shape, np.int8)
         rowsum = np.zeros(a.shape[0] * a.shape[1])
-        aa.l1_forward(a, t, sign, rowsum)
+        parallel_for(aa.l1_forward, len(rowsum), a, t, sign, rowsum)
         ctx.stuff = (sign, a.size)
         return torch.tensor(rowsum.sum() / a.size, dtype=img.dtype)
 

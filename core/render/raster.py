@@ -1,7 +1,8 @@
 """Numba z-buffer: visible face id and float32 view-space depth per pixel centre.
 
-One buffer per view; ``prange`` over thread slots, each slot owns an explicit scratch array of
-projected vertices and handles views slot, slot + T, ... (no shared scratch, no races).
+One buffer per view; thread slots (``parallel_for``, one piece per slot), each owning an
+explicit scratch array of projected vertices and handling views slot, slot + T, ... (no
+shared scratch, no races).
 Coverage uses the same float64 arithmetic as ``torch_raster.rasterize_torch``: canonical edge
 functions (from the lower to the higher vertex id, so a shared edge gives exactly opposite
 values; E == 0 belongs to the face that walks the edge upwards in id) and the nearest float32
@@ -14,12 +15,13 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 import torch
-from numba import njit, prange
+from numba import njit
 
+from ..runtime.borrow import borrow
 from ..runtime.jit import kernel
+from ..runtime.threads import parallel_for, threads
 from .prefetch import FACE_AHEAD, prefetch
 from .topology import face_neighbours_int32, faces_int32
 
@@ -129,15 +131,18 @@ def rasterize_face(faces, sc, fc, f, width, height, tb, db, facing_known):
     return True
 
 
-@kernel(parallel=True)
-def _raster_kernel(verts, faces, nbr, mvp, width, height, scratch, facing, surv, tri, depth, flags):
+@kernel(nogil=True, error_model="numpy")
+def _raster_kernel(verts, faces, nbr, mvp, width, height, scratch, facing, surv, tri, depth, flags,
+                   lo, hi):
     """Faces in batches of CHUNK. Where few faces of the last batch had a pixel centre in their
     bounding box (sub-pixel faces), a branch-free pass picks out the next batch's first; where
     most did, the next batch is rasterised directly (the pre-pass would only repeat their
     bounding boxes). Same result either way."""
+    verts, faces, nbr, mvp, scratch = borrow(verts), borrow(faces), borrow(nbr), borrow(mvp), borrow(scratch)
+    facing, surv, tri, depth, flags = borrow(facing), borrow(surv), borrow(tri), borrow(depth), borrow(flags)
     nb, nf = mvp.shape[0], faces.shape[0]
     nslot = scratch.shape[0]
-    for slot in prange(nslot):
+    for slot in range(lo, hi):
         sc, fc, sv = scratch[slot], facing[slot], surv[slot]
         for b in range(slot, nb, nslot):
             project(verts, mvp[b], width, height, sc)
@@ -188,12 +193,14 @@ def face_facing(faces, sc, fc):
     return 0
 
 
-@kernel(parallel=True)
-def project_and_flag(verts, faces, nbr, mvp, width, height, scratch, facing, tri, flags):
+@kernel(nogil=True, error_model="numpy")
+def project_and_flag(verts, faces, nbr, mvp, width, height, scratch, facing, tri, flags, lo, hi):
     """Silhouette-edge bits for an existing raster (e.g. one made by the torch backend)."""
+    verts, faces, nbr, mvp, scratch = borrow(verts), borrow(faces), borrow(nbr), borrow(mvp), borrow(scratch)
+    facing, tri, flags = borrow(facing), borrow(tri), borrow(flags)
     nb = mvp.shape[0]
     nslot = scratch.shape[0]
-    for slot in prange(nslot):
+    for slot in range(lo, hi):
         sc, fc = scratch[slot], facing[slot]
         for b in range(slot, nb, nslot):
             project(verts, mvp[b], width, height, sc)
@@ -204,7 +211,7 @@ def project_and_flag(verts, faces, nbr, mvp, width, height, scratch, facing, tri
 
 def _scratch(n_verts: int, n_faces: int, n_views: int) -> tuple[np.ndarray, np.ndarray]:
     """Per-thread-slot projected vertices and per-face facing signs."""
-    slots = max(1, min(numba.get_num_threads(), n_views))
+    slots = max(1, min(threads(), n_views))
     return np.empty((slots, n_verts, 4), dtype=np.float64), np.empty((slots, n_faces), dtype=np.int8)
 
 
@@ -225,8 +232,9 @@ def rasterize_numba(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor,
     flags = np.zeros((nb, height, width), dtype=np.uint8)
     if len(f) and nb:
         sc, fc = _scratch(len(v), len(f), nb)
-        _raster_kernel(v, f, face_neighbours_int32(faces), m, int(width), int(height), sc, fc,
-                       _survivor_scratch(len(f), len(sc)), tri, depth, flags)
+        parallel_for(_raster_kernel, len(sc), v, f, face_neighbours_int32(faces), m, int(width),
+                     int(height), sc, fc, _survivor_scratch(len(f), len(sc)), tri, depth, flags,
+                     parts=len(sc))
     return torch.from_numpy(tri), torch.from_numpy(depth), torch.from_numpy(flags)
 
 
@@ -238,6 +246,6 @@ def edge_flags_numba(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor
     flags = np.zeros(t.shape, dtype=np.uint8)
     if len(faces) and len(t):
         sc, fc = _scratch(len(v), len(faces), len(t))
-        project_and_flag(v, faces_int32(faces), face_neighbours_int32(faces), mvp.contiguous().numpy(),
-                         t.shape[2], t.shape[1], sc, fc, t, flags)
+        parallel_for(project_and_flag, len(sc), v, faces_int32(faces), face_neighbours_int32(faces),
+                     mvp.contiguous().numpy(), t.shape[2], t.shape[1], sc, fc, t, flags, parts=len(sc))
     return flags

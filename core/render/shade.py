@@ -13,8 +13,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
+from ..runtime.borrow import borrow
 from ..runtime.jit import kernel
 from .geometry import NORMAL_EPS
 from .pixel import add_vertex_grad, bary, bary_backward, clip_xyw
@@ -96,12 +97,15 @@ def _flat_backward(verts, i0, i1, i2, qa, qb, g0, g1, g2, gv):
     gv[i0, 2] -= pa2 + pb2
 
 
-@kernel(parallel=True, fastmath={"contract", "arcp"})
-def shade_forward(verts, faces, vn, noff, mvp, tri, mode, qa, qb, qk, out):
+@kernel(nogil=True, error_model="numpy", fastmath={"contract", "arcp"})
+def shade_forward(verts, faces, vn, noff, mvp, tri, mode, qa, qb, qk, out, lo, hi):
     """out (B, H, W, C) (zeros on entry) <- per-pixel value of ``mode``. Vertex normals are
     vn[:, noff:noff + 3] (``verts`` and ``vn`` may be one packed (N, 6) array: fewer cache misses)."""
+    verts, faces, vn, mvp = borrow(verts), borrow(faces), borrow(vn), borrow(mvp)
+    tri, out = borrow(tri), borrow(out)
+    qa, qb, qk = borrow(qa), borrow(qb), borrow(qk)
     nb, height, width = tri.shape
-    for row in prange(nb * height):
+    for row in range(lo, hi):  # rows of all views: nb * height
         b, r = row // height, row % height
         m = mvp[b]
         y = 1.0 - (r + 0.5) * (2.0 / height)
@@ -176,14 +180,16 @@ def pixel_backward(verts, faces, vn, noff, m, f, x, y, mode, qa, qb, qk, g0, g1,
     add_vertex_grad(gv, i2, m, gu2, gt2, ew2 - x * gu2 - y * gt2)
 
 
-@kernel(parallel=True, fastmath={"contract", "arcp"})
-def shade_backward(verts, faces, vn, noff, mvp, tri, mode, qa, qb, qk, gout, gv, gn):
+@kernel(nogil=True, error_model="numpy", fastmath={"contract", "arcp"})
+def shade_backward(verts, faces, vn, noff, mvp, tri, mode, qa, qb, qk, gout, gv, gn, lo, hi):
     """gv (SLOTS, N, >=3), gn (SLOTS, N, noff + 3) <- per-slot parts of d(sum gout * out)/d verts
     and d/d vertex normals (may be one packed (SLOTS, N, 6) buffer with noff = 3)."""
+    verts, faces, vn, mvp, tri = borrow(verts), borrow(faces), borrow(vn), borrow(mvp), borrow(tri)
+    qa, qb, qk, gout, gv, gn = borrow(qa), borrow(qb), borrow(qk), borrow(gout), borrow(gv), borrow(gn)
     nb, height, width = tri.shape
     nslot = gv.shape[0]
     nrows = nb * height
-    for k in prange(nslot):
+    for k in range(lo, hi):  # slots
         gvk, gnk = gv[k], gn[k]
         gvk[:] = 0.0
         gnk[:] = 0.0  # (a no-op repeat when gv and gn are one packed buffer)

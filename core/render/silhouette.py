@@ -18,8 +18,9 @@ each pair's edge is found once (code occ * 3 + e, -1 for none).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
+from ..runtime.borrow import borrow
 from ..runtime.jit import kernel
 from .pixel import clip_xyw
 from .prefetch import ahead
@@ -161,11 +162,13 @@ def _edge_code(verts, faces, nbr, m, cur, bits, walk, near_a, vertical, fixed, p
     return -1
 
 
-@kernel(parallel=True)
-def pair_codes(verts, faces, nbr, mvp, tri, depth, flags, code_h, code_v):
+@kernel(nogil=True, error_model="numpy")
+def pair_codes(verts, faces, nbr, mvp, tri, depth, flags, code_h, code_v, lo, hi):
     """code_h[b, r, c]: pair (r, c)-(r, c + 1); code_v[b, r, c]: pair (r, c)-(r + 1, c)."""
+    verts, faces, nbr, mvp, tri = borrow(verts), borrow(faces), borrow(nbr), borrow(mvp), borrow(tri)
+    depth, flags, code_h, code_v = borrow(depth), borrow(flags), borrow(code_h), borrow(code_v)
     nb, height, width = tri.shape
-    for row in prange(nb * height):
+    for row in range(lo, hi):  # rows of all views: nb * height
         b, r = row // height, row % height
         m = mvp[b]
         tb, db, fb = tri[b], depth[b], flags[b]

@@ -4,18 +4,17 @@ the number of threads and no two threads ever write the same memory."""
 from __future__ import annotations
 
 import numpy as np
-from numba import prange
-
 from ..runtime.jit import kernel
+from ..runtime.threads import parallel_for
 
 SLOTS = 8
 """Gradient accumulation slots (fixed, so results are independent of the thread count)."""
 
 
-@kernel(parallel=True)
-def reduce_slots(buf, out):
-    """out (N, C) <- buf (K, N, C) summed over slots in slot order (deterministic)."""
-    for i in prange(buf.shape[1]):
+@kernel(nogil=True, error_model="numpy")
+def reduce_slots(buf, out, lo, hi):
+    """out[lo:hi] (N, C) <- buf[:, lo:hi] (K, N, C) summed over slots in slot order (deterministic)."""
+    for i in range(lo, hi):
         for j in range(buf.shape[2]):
             s = 0.0
             for k in range(buf.shape[0]):
@@ -41,5 +40,5 @@ def slot_buffer(name: str, n: int, dtype, width: int = 3) -> np.ndarray:
 
 def reduce(buf: np.ndarray) -> np.ndarray:
     out = np.empty(buf.shape[1:], dtype=buf.dtype)
-    reduce_slots(buf, out)
+    parallel_for(reduce_slots, buf.shape[1], buf, out)
     return out

@@ -88,7 +88,7 @@ class _NamedCache(FunctionCache):
 
 
 def kernel(**options) -> Callable:
-    """``@kernel(parallel=True)``: compiled with numba, cached per import name."""
+    """``@kernel(nogil=True, error_model="numpy")``: compiled with numba, cached per import name."""
 
     def wrap(fn):
         dispatcher = njit(**options)(fn)

@@ -1,12 +1,25 @@
-"""One place that pins the native thread pools (torch, numba) to a core count.
+"""One place that pins the thread pools (torch's and ours) to a core count, and
+:func:`parallel_for`, which runs a compiled kernel over parts of a range on our pool.
 
 Several native pools in one process oversubscribe a small machine; every entry point (tests,
 benchmarks, batch, the Blender add-on preferences) calls :func:`set_threads` instead of
 touching the pools itself.
+
+The kernels run in parallel through :func:`parallel_for` rather than numba's ``prange``: a
+``prange`` kernel takes numba about twice as long to compile (parallel lowering), which a
+fresh install pays before its first construction. Our kernels release the GIL
+(``kernel(nogil=True)``), so threads of one process run them side by side.
 """
 from __future__ import annotations
 
 import os
+import threading
+from concurrent.futures import ThreadPoolExecutor, wait
+from typing import Callable
+
+_THREADS: int | None = None                  # set_threads' count (None: the usable cores)
+_POOL: ThreadPoolExecutor | None = None
+_LOCK = threading.Lock()
 
 
 def default_threads() -> int:
@@ -18,19 +31,63 @@ def default_threads() -> int:
 
 
 def set_threads(n: int | None = None) -> int:
-    """Pin torch's and numba's pools to ``n`` threads (default: the usable cores); returns n."""
+    """Pin torch's pool and :func:`parallel_for`'s to ``n`` threads (default: the usable
+    cores); returns n. (numba's own pool is never started: no kernel uses ``prange``. Were
+    it started, its OpenMP layer would reset the thread count torch shares.)"""
+    global _THREADS
     n = default_threads() if not n or n < 1 else int(n)
     n = min(n, default_threads())
-    # numba first: its first call launches numba's OpenMP layer, which resets the OpenMP
-    # thread count that torch shares (torch would silently run on all cores, and its float
-    # reductions would then sum in a different order than on later calls).
-    try:
-        import numba
-
-        numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
-    except ImportError:
-        pass
+    _THREADS = n
     import torch
 
     torch.set_num_threads(n)
     return n
+
+
+def threads() -> int:
+    """The thread count :func:`parallel_for` uses (:func:`set_threads`'s, else the cores)."""
+    return _THREADS or default_threads()
+
+
+def _pool() -> ThreadPoolExecutor:
+    global _POOL
+    with _LOCK:
+        if _POOL is None:       # sized for any count set later; a call uses at most threads()
+            _POOL = ThreadPoolExecutor(max(default_threads(), 1), thread_name_prefix="micromesh")
+        return _POOL
+
+
+def parallel_for(fn: Callable, n: int, *args, parts: int | None = None,
+                 workers: int | None = None) -> None:
+    """``fn(*args, lo, hi)`` over ``[0, n)`` cut into ``parts`` contiguous pieces (default: 4
+    per thread, for balance) on ``workers`` threads (default :func:`threads`), the caller's
+    among them; returns when all are done, raising the first error. ``fn`` must release the
+    GIL and write disjoint memory for disjoint pieces; which thread runs a piece must not
+    change the result."""
+    n = int(n)
+    k = max(1, min(workers or threads(), default_threads()))
+    parts = max(1, min(n, parts or 4 * k))
+    if n <= 0:
+        return
+    if k == 1 or parts == 1 or threading.current_thread().name.startswith("micromesh"):
+        fn(*args, 0, n)       # (from inside a piece, no nesting: the pool could be all busy)
+        return
+    bounds = [n * i // parts for i in range(parts + 1)]
+    pieces = iter(zip(bounds[:-1], bounds[1:]))
+    lock = threading.Lock()
+
+    def worker() -> None:   # each thread takes the next piece until none is left
+        while True:
+            with lock:
+                piece = next(pieces, None)
+            if piece is None:
+                return
+            fn(*args, *piece)
+
+    futures = [_pool().submit(worker) for _ in range(min(k, parts) - 1)]
+    try:
+        worker()
+    finally:
+        wait(futures)
+    for f in futures:
+        f.result()
