@@ -22,14 +22,17 @@ event.register("numba:compile", Rec())
 import numpy as np
 from core.render.normals import _face_normals
 from core.runtime import warm
-warm._SENTINEL = ("render.normals", "_face_normals")
-before = warm.is_warm()
+from numba import typeof
 verts = np.random.default_rng(0).random((4, 3)).astype(np.float32)
 faces = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64)
 fn = np.zeros((2, 3), np.float32)
-_face_normals(verts, faces, fn, 0, 2)
+args = (verts, faces, fn, 0, 2)
+listed = [{"module": "render.normals", "name": "_face_normals",
+           "signature": repr(tuple(typeof(a) for a in args))}]
+before = warm.is_warm(listed)
+_face_normals(*args)
 print("warm_before", before, "compiled", compiled.count("_face_normals"),
-      "warm_after", warm.is_warm())
+      "warm_after", warm.is_warm(listed))
 """
 
 

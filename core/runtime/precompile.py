@@ -98,9 +98,7 @@ def ensure(progress: Callable[[int, int], None] | None = None,
     the processes (what they finished stays cached)."""
     if _RECORDING:
         return 0
-    entries = load()
-    index = {id(e): i for i, e in enumerate(entries)}
-    missing = [e for e in entries if not cached(e)]
+    missing = [dict(e, index=i) for i, e in enumerate(load()) if not cached(e)]
     n = min(processes or min(usable_cores(), 4), len(missing))
     if n <= 1:
         return 0
@@ -108,7 +106,7 @@ def ensure(progress: Callable[[int, int], None] | None = None,
     paths = [p for p in sys.path if p and p != root]
     logs = [tempfile.TemporaryFile() for _ in range(n)]
     procs = [subprocess.Popen(command(root, package, paths, "core.runtime.precompile",
-                                      "compile_listed", *(index[id(e)] for e in part)),
+                                      "compile_listed", *(e["index"] for e in part)),
                               stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
              for part, log in zip(split(missing, n), logs)]
     try:

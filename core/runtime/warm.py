@@ -14,16 +14,11 @@ features): an entry compiled on another machine is never served, it is compiled 
 """
 from __future__ import annotations
 
-import importlib
 import os
 import time
 from typing import Callable
 
 from . import child
-
-# Its index file exists once the kernels are cached: the last kernel a construction compiles
-_SENTINEL = ("render.silhouette", "pair_codes")
-
 
 def warm(progress: Callable[[str], None] | None = None) -> float:
     """Compile (or load from the cache) the kernels of a default construction; seconds taken."""
@@ -46,20 +41,12 @@ def warm(progress: Callable[[str], None] | None = None) -> float:
     return time.perf_counter() - t
 
 
-def is_warm() -> bool:
-    """Whether the sentinel kernel's cache holds an entry compiled for this CPU, for this
-    source and this import name."""
-    package = __name__.rsplit(".", 2)[0]                 # <...>.core
-    module = importlib.import_module(f"{package}.{_SENTINEL[0]}")
-    cache = getattr(getattr(module, _SENTINEL[1]), "_cache", None)
-    try:
-        from numba.core.registry import cpu_target
+def is_warm(entries: list[dict] | None = None) -> bool:
+    """Whether the cache holds every listed kernel (``precompile.load()``, or ``entries``)
+    compiled for this CPU, for this source and this import name."""
+    from . import precompile
 
-        magic = cpu_target.target_context.codegen().magic_tuple()
-        index = cache._cache_file._load_index()           # {(signature, cpu, ...): file}
-    except Exception:  # noqa: BLE001  (no cache, or numba's internals moved: not warm)
-        return False
-    return any(key[1] == magic for key in index)
+    return all(precompile.cached(e) for e in (precompile.load() if entries is None else entries))
 
 
 def main(action: str = "warm") -> None:
