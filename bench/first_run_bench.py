@@ -60,8 +60,7 @@ print(json.dumps({"seconds": time.perf_counter() - t0, "compiled": len(compiled)
 def child(mode: str, cache: str, threads: int) -> dict:
     env = {**os.environ, "NUMBA_CACHE_DIR": cache}
     r = subprocess.run([sys.executable, "-c", CHILD, str(ROOT), mode, str(threads or 0)],
-                       capture_output=True,
-                       text=True, env=env, timeout=1800)
+                       capture_output=True, text=True, env=env, timeout=1800)
     if r.returncode != 0:
         raise SystemExit(r.stderr)
     return json.loads(r.stdout.strip().splitlines()[-1])

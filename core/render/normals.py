@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import torch
+
 from ..runtime.jit import kernel
 from ..runtime.threads import parallel_for
 from .geometry import NORMAL_EPS

@@ -4,6 +4,7 @@ the number of threads and no two threads ever write the same memory."""
 from __future__ import annotations
 
 import numpy as np
+
 from ..runtime.jit import kernel
 from ..runtime.threads import parallel_for
 

@@ -53,7 +53,7 @@ def _pool() -> ThreadPoolExecutor:
     global _POOL
     with _LOCK:
         if _POOL is None:       # sized for any count set later; a call uses at most threads()
-            _POOL = ThreadPoolExecutor(max(default_threads(), 1), thread_name_prefix="micromesh")
+            _POOL = ThreadPoolExecutor(default_threads(), thread_name_prefix="micromesh")
         return _POOL
 
 
