@@ -15,7 +15,8 @@ from . import antialias as aa
 from . import shade as sk
 from . import silhouette, slots
 from .normals import vertex_normals_numba
-from .raster import edge_flags_numba, rasterize_numba
+from .edge_flags import edge_flags_numba
+from .raster import rasterize_numba
 from .sh import SH_QUADRATIC
 from .topology import face_neighbours_int32, faces_int32
 from .types import Raster

@@ -9,7 +9,8 @@ values; E == 0 belongs to the face that walks the edge upwards in id) and the ne
 depth wins, ties to the smaller face id. Faces with a vertex behind the near plane are dropped.
 Faces go in batches; batches of mostly sub-pixel faces first pick out, branch-free, the few
 whose bounding box holds a pixel centre (see ``_raster_kernel``).
-A post-pass per view stores each pixel's silhouette-edge bits for the antialiasing.
+A post-pass per view stores each pixel's silhouette-edge bits for the antialiasing
+(``edge_flags``).
 """
 from __future__ import annotations
 
@@ -21,36 +22,10 @@ from numba import njit
 
 from ..runtime.borrow import borrow
 from ..runtime.jit import kernel
-from ..runtime.threads import parallel_for, threads
-from .prefetch import FACE_AHEAD, prefetch
+from ..runtime.threads import parallel_for
+from .edge_flags import silhouette_flags
+from .projection import project, scratch, screen_area
 from .topology import face_neighbours_int32, faces_int32
-
-
-@njit(inline="always")
-def _screen_area(sc, i0, i1, i2):
-    """(twice the signed screen area, in front of the near plane, facing sign) of a face
-    from projected vertices; the facing sign is 0 for degenerate or clipped faces."""
-    x0, y0, x1, y1, x2, y2 = sc[i0, 0], sc[i0, 1], sc[i1, 0], sc[i1, 1], sc[i2, 0], sc[i2, 1]
-    area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
-    ok = sc[i0, 3] != 0.0 and sc[i1, 3] != 0.0 and sc[i2, 3] != 0.0
-    return area, ok, (0 if not ok else (1 if area > 0 else (-1 if area < 0 else 0)))
-
-
-@kernel()
-def project(verts, m, width, height, sc):
-    """sc[i] = (screen x, screen y, 1 / clip w, 1 if in front of the near plane else 0)."""
-    hw, hh = 0.5 * width, 0.5 * height
-    for i in range(verts.shape[0]):
-        vx, vy, vz = np.float64(verts[i, 0]), np.float64(verts[i, 1]), np.float64(verts[i, 2])
-        x = ((m[0, 0] * vx + m[0, 1] * vy) + m[0, 2] * vz) + m[0, 3]
-        y = ((m[1, 0] * vx + m[1, 1] * vy) + m[1, 2] * vz) + m[1, 3]
-        z = ((m[2, 0] * vx + m[2, 1] * vy) + m[2, 2] * vz) + m[2, 3]
-        w = ((m[3, 0] * vx + m[3, 1] * vy) + m[3, 2] * vz) + m[3, 3]
-        sc[i, 0] = (x / w + 1.0) * hw
-        sc[i, 1] = (1.0 - y / w) * hh
-        sc[i, 2] = 1.0 / w
-        sc[i, 3] = 1.0 if (w > 0 and z >= -w) else 0.0
-    return 0
 
 
 CHUNK = 1024
@@ -68,7 +43,7 @@ def survivors(faces, sc, fc, start, stop, surv):
     for f in range(start, stop):
         i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
         x0, y0, x1, y1, x2, y2 = sc[i0, 0], sc[i0, 1], sc[i1, 0], sc[i1, 1], sc[i2, 0], sc[i2, 1]
-        area, ok, s = _screen_area(sc, i0, i1, i2)
+        area, ok, s = screen_area(sc, i0, i1, i2)
         fc[f] = s
         spans_x = math.ceil(min(x0, x1, x2) - 0.5) <= math.floor(max(x0, x1, x2) - 0.5)
         spans_y = math.ceil(min(y0, y1, y2) - 0.5) <= math.floor(max(y0, y1, y2) - 0.5)
@@ -83,7 +58,7 @@ def rasterize_face(faces, sc, fc, f, width, height, tb, db, facing_known):
     Returns whether its bounding box held a centre."""
     i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
     x0, y0, x1, y1, x2, y2 = sc[i0, 0], sc[i0, 1], sc[i1, 0], sc[i1, 1], sc[i2, 0], sc[i2, 1]
-    area, ok, s = _screen_area(sc, i0, i1, i2)
+    area, ok, s = screen_area(sc, i0, i1, i2)
     if not facing_known:
         fc[f] = s
     # bounding box of pixel centres first: most small faces cover none
@@ -163,58 +138,6 @@ def _raster_kernel(verts, faces, nbr, mvp, width, height, scratch, facing, surv,
     return 0
 
 
-@kernel()
-def silhouette_flags(nbr, fc, tb, fb):
-    """Per covered pixel, bit e set where edge e of its face is a silhouette in this view: no
-    neighbour across it, or the neighbour faces the other way (``fc``: per-face sign of the
-    screen area, 0 for degenerate faces or faces crossing the near plane)."""
-    height, width = tb.shape
-    for r in range(height):
-        for c in range(width):
-            if c + FACE_AHEAD < width and tb[r, c + FACE_AHEAD] >= 0:
-                prefetch(nbr, tb[r, c + FACE_AHEAD])
-            f = tb[r, c]
-            bits = 0
-            if f >= 0:
-                s = fc[f]
-                for e in range(3):
-                    n = nbr[f, e]
-                    if n < 0 or fc[n] != s:
-                        bits |= 1 << e
-            fb[r, c] = bits
-    return 0
-
-
-@kernel()
-def face_facing(faces, sc, fc):
-    """fc[f] <- sign of the screen area of face f (0: degenerate or crossing the near plane)."""
-    for f in range(faces.shape[0]):
-        fc[f] = _screen_area(sc, faces[f, 0], faces[f, 1], faces[f, 2])[2]
-    return 0
-
-
-@kernel(nogil=True, error_model="numpy")
-def project_and_flag(verts, faces, nbr, mvp, width, height, scratch, facing, tri, flags, lo, hi):
-    """Silhouette-edge bits for an existing raster (e.g. one made by the torch backend)."""
-    verts, faces, nbr, mvp, scratch = borrow(verts), borrow(faces), borrow(nbr), borrow(mvp), borrow(scratch)
-    facing, tri, flags = borrow(facing), borrow(tri), borrow(flags)
-    nb = mvp.shape[0]
-    nslot = scratch.shape[0]
-    for slot in range(lo, hi):
-        sc, fc = scratch[slot], facing[slot]
-        for b in range(slot, nb, nslot):
-            project(verts, mvp[b], width, height, sc)
-            face_facing(faces, sc, fc)
-            silhouette_flags(nbr, fc, tri[b], flags[b])
-    return 0
-
-
-def _scratch(n_verts: int, n_faces: int, n_views: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per-thread-slot projected vertices and per-face facing signs."""
-    slots = max(1, min(threads(), n_views))
-    return np.empty((slots, n_verts, 4), dtype=np.float64), np.empty((slots, n_faces), dtype=np.int8)
-
-
 def _survivor_scratch(n_faces: int, slots: int) -> np.ndarray:
     return np.empty((slots, min(n_faces, CHUNK)), dtype=np.int32)
 
@@ -231,21 +154,8 @@ def rasterize_numba(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor,
     depth = np.full((nb, height, width), np.inf, dtype=np.float32)
     flags = np.zeros((nb, height, width), dtype=np.uint8)
     if len(f) and nb:
-        sc, fc = _scratch(len(v), len(f), nb)
+        sc, fc = scratch(len(v), len(f), nb)
         parallel_for(_raster_kernel, len(sc), v, f, face_neighbours_int32(faces), m, int(width),
                      int(height), sc, fc, _survivor_scratch(len(f), len(sc)), tri, depth, flags,
                      parts=len(sc))
     return torch.from_numpy(tri), torch.from_numpy(depth), torch.from_numpy(flags)
-
-
-def edge_flags_numba(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor,
-                     tri: torch.Tensor) -> np.ndarray:
-    """Silhouette-edge bits (B, H, W) uint8 for a raster that lacks them."""
-    v = verts.detach().contiguous().numpy()
-    t = tri.contiguous().numpy()
-    flags = np.zeros(t.shape, dtype=np.uint8)
-    if len(faces) and len(t):
-        sc, fc = _scratch(len(v), len(faces), len(t))
-        parallel_for(project_and_flag, len(sc), v, faces_int32(faces), face_neighbours_int32(faces),
-                     mvp.contiguous().numpy(), t.shape[2], t.shape[1], sc, fc, t, flags, parts=len(sc))
-    return flags

@@ -12,7 +12,7 @@ is often interior (the silhouette lies inside a sliver that covers no pixel cent
 background or a clearly farther surface the segment is then followed across neighbouring faces
 (up to ``MAX_WALK``) to the silhouette edge. ``torch_antialias`` has the same rule.
 
-The silhouette-edge bits per pixel come from the rasteriser (``raster.silhouette_flags``);
+The silhouette-edge bits per pixel come from the rasteriser (``edge_flags.silhouette_flags``);
 each pair's edge is found once (code occ * 3 + e, -1 for none).
 """
 from __future__ import annotations
