@@ -6,6 +6,7 @@ import time
 import numpy as np
 import pytest
 
+from core.losses import mean_edge_length
 from core.mesh import TriMesh
 from core.settings import preset
 from tests.test_construct import icosphere
@@ -87,7 +88,8 @@ def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, 
     run = SimpleNamespace(s=preset("default"), base=base, cost=cost, budget=cost(levels),
                           fixed=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
                           notes={}, check_stop=lambda: None, deadline=np.inf,
-                          announce=lambda phase: None)
+                          announce=lambda phase: None,
+                          h=mean_edge_length(base.vertices, base.faces))
     z = base.vertices[base.faces].mean(1)[:, 2]
     if hot_cap:       # the exchange as it should go: up where the detail is
         up, down = z > 0.5, z < -0.5
@@ -149,7 +151,8 @@ def test_the_base_and_the_directions_move_only_where_it_helps(growth, monkeypatc
     run = SimpleNamespace(s=preset("default", residual_lod=0.0), base=base, cost=None, budget=0,
                           fixed=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
                           notes={}, check_stop=lambda: None, deadline=np.inf,
-                          announce=lambda phase: None)
+                          announce=lambda phase: None,
+                          h=mean_edge_length(base.vertices, base.faces))
     monkeypatch.setattr(fin, "_SHELL_GROWTH", growth)
     out, _, error = fin.fitted(run, mm)
     note = run.notes["base_fit"]
@@ -198,7 +201,8 @@ def test_an_optional_fit_stage_leaves_room_for_the_bounds_after_it(tail, monkeyp
                           cost=None, budget=0, fixed=None,
                           scene=SimpleNamespace(ref=TriMesh(rv * 1.02, rf)), timer=PhaseTimer(),
                           notes={}, check_stop=lambda: None,
-                          deadline=time.perf_counter() + 600.0, announce=lambda phase: None)
+                          deadline=time.perf_counter() + 600.0, announce=lambda phase: None,
+                          h=mean_edge_length(base.vertices, base.faces))
     monkeypatch.setattr(fin, "_PASS_TIME", 0.0)
     monkeypatch.setattr(fin, "_TAIL_TIME", tail)
     fin.fitted(run, mm)
@@ -207,3 +211,55 @@ def test_an_optional_fit_stage_leaves_room_for_the_bounds_after_it(tail, monkeyp
         assert "base_fit" not in run.notes
     else:
         assert "fit_passes" not in run.notes and "base_fit" in run.notes
+
+
+def test_a_base_vertex_whose_shell_the_base_round_thickens_is_put_back(monkeypatch):
+    """fitting._base_moved: where the base round thickens a vertex's shell past twice what it
+    was (here: one vertex pulled far out, its star's values following it), that vertex goes
+    back where it was (with the neighbours whose values it shared, thickened too) and the
+    displacements are fitted again around it; the other vertices keep their moves. ``run.notes`` counts the vertices put back per round."""
+    from types import SimpleNamespace
+
+    import core.construct.fitting as fin
+    from core.metrics import PhaseTimer
+    from core.micromesh import MicroMesh
+
+    v, f = icosphere(2)
+    base = TriMesh(v, f)
+    mm = MicroMesh.flat(base, np.full(base.n_faces, 2), v.copy())
+    mm = mm.with_displacements(0.01 * np.sin(7 * mm.micro_vertex_base_positions()[:, 0]))
+    pulled, far = 0, int(np.argmin(v @ v[0]))              # far: the opposite pole
+    calls = []
+
+    def fake_fit(run, m, samples, base_stiffness=0.0, rounds=2):
+        calls.append(base_stiffness)
+        if base_stiffness == 0.0:                           # the fit again: values only
+            return m
+        moved = m.base.vertices.copy()
+        moved += 1e-4 * m.directions                         # every vertex moves a little
+        moved[pulled] += 0.5 * m.directions[pulled]         # one is pulled far out...
+        d = m.displacements.copy()
+        star = np.unique(m.topology.face_vertex_idx[np.concatenate(
+            [np.arange(m.topology.face_vertex_ptr[k], m.topology.face_vertex_ptr[k + 1])
+             for k in np.flatnonzero((m.base.faces == pulled).any(axis=1))])])
+        d[star] -= 0.5 * m.topology.interp[star][:, pulled].toarray().ravel()  # ...values follow
+        return m.with_base_positions(moved).with_displacements(d)
+
+    monkeypatch.setattr(fin, "fit_rounds", fake_fit)
+    run = SimpleNamespace(s=preset("default"), timer=PhaseTimer(), notes={},
+                          h=mean_edge_length(base.vertices, base.faces))
+    assert fin._spans(fake_fit(run, mm, None, 1.0)).max() > 3 * fin._spans(mm).max()
+    calls.clear()
+    out = fin._base_moved(run, mm, None)
+    assert calls == [run.s.fit_base_stiffness, 0.0]
+    back = np.flatnonzero((out.base.vertices == mm.base.vertices).all(axis=1))
+    ring = np.unique(base.faces[(base.faces == pulled).any(axis=1)])
+    assert pulled in back and set(back) <= set(ring)       # it, and neighbours sharing its values
+    np.testing.assert_allclose(out.base.vertices[far], mm.base.vertices[far] + 1e-4 * v[far])
+    assert run.notes["base_fit_vertices_put_back"] == [len(back)]
+    # a round that thickens nothing much is kept as it is, with no second fit
+    monkeypatch.setattr(fin, "fit_rounds", lambda run, m, *a, **k: m.with_base_positions(
+        m.base.vertices + 1e-4 * m.directions))
+    out = fin._base_moved(run, mm, None)
+    np.testing.assert_allclose(out.base.vertices, mm.base.vertices + 1e-4 * v)
+    assert run.notes["base_fit_vertices_put_back"] == [len(back), 0]
