@@ -10,91 +10,19 @@ and b_i = beta_i / sum(beta). The backward scatters vertex gradients into per-sl
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
 from ..runtime.borrow import borrow
 from ..runtime.jit import kernel
-from .geometry import NORMAL_EPS
+from .lighting import (face_normal, flat_backward, interp_normal, sh_grad, shade_normal,
+                       unnormalized_grad)
 from .pixel import add_vertex_grad, bary, bary_backward, clip_xyw
 from .prefetch import ahead
 
 MODE_SHADED, MODE_NORMAL, MODE_DEPTH, MODE_MASK, MODE_FLAT = 0, 1, 2, 3, 4
 MODES = {"shaded": MODE_SHADED, "normal": MODE_NORMAL, "depth": MODE_DEPTH, "mask": MODE_MASK,
          "flat": MODE_FLAT}
-
-
-@njit(inline="always")
-def shade_normal(qa, qb, qk, ch, n0, n1, n2):
-    a = qa[ch]
-    return (qk[ch] + qb[ch, 0] * n0 + qb[ch, 1] * n1 + qb[ch, 2] * n2
-            + a[0, 0] * n0 * n0 + a[1, 1] * n1 * n1 + a[2, 2] * n2 * n2
-            + 2.0 * (a[0, 1] * n0 * n1 + a[0, 2] * n0 * n2 + a[1, 2] * n1 * n2))
-
-
-@njit(inline="always")
-def _interp_normal(vn, o, i0, i1, i2, b0, b1, b2):
-    n0 = b0 * vn[i0, o] + b1 * vn[i1, o] + b2 * vn[i2, o]
-    n1 = b0 * vn[i0, o + 1] + b1 * vn[i1, o + 1] + b2 * vn[i2, o + 1]
-    n2 = b0 * vn[i0, o + 2] + b1 * vn[i1, o + 2] + b2 * vn[i2, o + 2]
-    inv = 1.0 / math.sqrt(n0 * n0 + n1 * n1 + n2 * n2 + NORMAL_EPS)
-    return n0 * inv, n1 * inv, n2 * inv, inv
-
-
-@njit(inline="always")
-def _sh_grad(qa, qb, g0, g1, g2, n0, n1, n2):
-    """Gradient of the three SH-shaded channels (upstream g0..g2) w.r.t. the unit normal."""
-    h0 = h1 = h2 = 0.0
-    for ch in range(3):
-        gc = g0 if ch == 0 else (g1 if ch == 1 else g2)
-        a = qa[ch]
-        h0 += gc * (qb[ch, 0] + 2.0 * (a[0, 0] * n0 + a[0, 1] * n1 + a[0, 2] * n2))
-        h1 += gc * (qb[ch, 1] + 2.0 * (a[1, 0] * n0 + a[1, 1] * n1 + a[1, 2] * n2))
-        h2 += gc * (qb[ch, 2] + 2.0 * (a[2, 0] * n0 + a[2, 1] * n1 + a[2, 2] * n2))
-    return h0, h1, h2
-
-
-@njit(inline="always")
-def _unnormalized_grad(n0, n1, n2, inv, h0, h1, h2):
-    """Through the normalisation n = v / |v| (inv = 1 / |v|): the gradient w.r.t. v."""
-    d = n0 * h0 + n1 * h1 + n2 * h2
-    return (h0 - n0 * d) * inv, (h1 - n1 * d) * inv, (h2 - n2 * d) * inv
-
-
-@njit(inline="always")
-def _face_normal(verts, i0, i1, i2):
-    """Unit normal of a face (cross product of its edges from vertex 0), 1/|cross|, the edges."""
-    ax = np.float64(verts[i1, 0]) - np.float64(verts[i0, 0])
-    ay = np.float64(verts[i1, 1]) - np.float64(verts[i0, 1])
-    az = np.float64(verts[i1, 2]) - np.float64(verts[i0, 2])
-    bx = np.float64(verts[i2, 0]) - np.float64(verts[i0, 0])
-    by = np.float64(verts[i2, 1]) - np.float64(verts[i0, 1])
-    bz = np.float64(verts[i2, 2]) - np.float64(verts[i0, 2])
-    nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-    inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz + NORMAL_EPS)
-    return nx * inv, ny * inv, nz * inv, inv, ax, ay, az, bx, by, bz
-
-
-@njit(inline="always")
-def _flat_backward(verts, i0, i1, i2, qa, qb, g0, g1, g2, gv):
-    """Gradient of the SH shading of a face's own normal w.r.t. its three corners."""
-    n0, n1, n2, inv, ax, ay, az, bx, by, bz = _face_normal(verts, i0, i1, i2)
-    h0, h1, h2 = _sh_grad(qa, qb, g0, g1, g2, n0, n1, n2)
-    k0, k1, k2 = _unnormalized_grad(n0, n1, n2, inv, h0, h1, h2)
-    # cross = a x b: d/da = b x k, d/db = k x a; vertex 0 moves both a and b.
-    pa0, pa1, pa2 = by * k2 - bz * k1, bz * k0 - bx * k2, bx * k1 - by * k0
-    pb0, pb1, pb2 = k1 * az - k2 * ay, k2 * ax - k0 * az, k0 * ay - k1 * ax
-    gv[i1, 0] += pa0
-    gv[i1, 1] += pa1
-    gv[i1, 2] += pa2
-    gv[i2, 0] += pb0
-    gv[i2, 1] += pb1
-    gv[i2, 2] += pb2
-    gv[i0, 0] -= pa0 + pb0
-    gv[i0, 1] -= pa1 + pb1
-    gv[i0, 2] -= pa2 + pb2
 
 
 @kernel(nogil=True, error_model="numpy", fastmath={"contract", "arcp"})
@@ -119,7 +47,7 @@ def shade_forward(verts, faces, vn, noff, mvp, tri, mode, qa, qb, qk, out, lo, h
                 continue
             i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
             if mode == MODE_FLAT:
-                n0, n1, n2 = _face_normal(verts, i0, i1, i2)[:3]
+                n0, n1, n2 = face_normal(verts, i0, i1, i2)[:3]
                 for ch in range(3):
                     out[b, r, c, ch] = shade_normal(qa, qb, qk, ch, n0, n1, n2)
                 continue
@@ -131,7 +59,7 @@ def shade_forward(verts, faces, vn, noff, mvp, tri, mode, qa, qb, qk, out, lo, h
             if mode == MODE_DEPTH:
                 out[b, r, c, 0] = b0 * w0 + b1 * w1 + b2 * w2
                 continue
-            n0, n1, n2, inv = _interp_normal(vn, noff, i0, i1, i2, b0, b1, b2)
+            n0, n1, n2, inv = interp_normal(vn, noff, i0, i1, i2, b0, b1, b2)
             if mode == MODE_NORMAL:
                 out[b, r, c, 0], out[b, r, c, 1], out[b, r, c, 2] = n0, n1, n2
             else:
@@ -145,7 +73,7 @@ def pixel_backward(verts, faces, vn, noff, m, f, x, y, mode, qa, qb, qk, g0, g1,
     """Accumulate the gradients of one pixel's value (upstream g0..g2) into gv / gn."""
     i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
     if mode == MODE_FLAT:
-        _flat_backward(verts, i0, i1, i2, qa, qb, g0, g1, g2, gv)
+        flat_backward(verts, i0, i1, i2, qa, qb, g0, g1, g2, gv)
         return
     x0, y0, w0 = clip_xyw(verts, m, i0)
     x1, y1, w1 = clip_xyw(verts, m, i1)
@@ -156,12 +84,12 @@ def pixel_backward(verts, faces, vn, noff, m, f, x, y, mode, qa, qb, qk, g0, g1,
         gb0, gb1, gb2 = g0 * w0, g0 * w1, g0 * w2
         ew0, ew1, ew2 = g0 * b0, g0 * b1, g0 * b2
     else:
-        n0, n1, n2, inv = _interp_normal(vn, noff, i0, i1, i2, b0, b1, b2)
+        n0, n1, n2, inv = interp_normal(vn, noff, i0, i1, i2, b0, b1, b2)
         if mode == MODE_NORMAL:
             h0, h1, h2 = g0, g1, g2
         else:
-            h0, h1, h2 = _sh_grad(qa, qb, g0, g1, g2, n0, n1, n2)
-        k0, k1, k2 = _unnormalized_grad(n0, n1, n2, inv, h0, h1, h2)
+            h0, h1, h2 = sh_grad(qa, qb, g0, g1, g2, n0, n1, n2)
+        k0, k1, k2 = unnormalized_grad(n0, n1, n2, inv, h0, h1, h2)
         gn[i0, noff + 0] += b0 * k0
         gn[i0, noff + 1] += b0 * k1
         gn[i0, noff + 2] += b0 * k2
