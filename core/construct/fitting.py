@@ -105,8 +105,8 @@ def _base_moved(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
     spacing a base vertex can be pulled across to the far side, and its shell with it: a
     vertex whose span (the thickness of its shell, ``_spans``) grows past ``_SPAN_GROWTH``
     times its span before, plus ``_SPAN_FLOOR`` mean base edges, is put back, and the
-    displacements are fitted again around it (a few such vertices had made the shell cap
-    refuse the whole round: the CAD part's shell 2.3 times thicker)."""
+    displacements are fitted again around it: a few such vertices would otherwise make the
+    shell's cap refuse the whole round."""
     with run.timer.phase("fit"):
         moved = fit_rounds(run, mm, samples, run.s.fit_base_stiffness, rounds=1)
         grown = _spans(moved) > _SPAN_GROWTH * _spans(mm) + _SPAN_FLOOR * run.h

@@ -79,8 +79,8 @@ def compile_listed(*indices: str) -> None:
     """Compile the listed kernels at ``indices`` (their positions in the list) in this
     process; the entry point of each compiling process. Python's cycle collector is off
     while it compiles: numba's compiler makes a great many objects, and the collector's
-    passes over them took a quarter of the time (41.4 → 28.6 s for the whole list in one
-    process, for 320 MB more at the peak; the process ends when it is done)."""
+    passes over them cost about a quarter of the time (``docs/results.md``). The memory it
+    would have freed goes back when the process ends, as soon as it is done."""
     entries = load()
     gc.disable()
     try:
