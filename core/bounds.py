@@ -50,6 +50,12 @@ def tight_bounds(mm: MicroMesh, min_scale: float = 1e-6) -> DirectionBounds:
     return DirectionBounds(vmin, np.maximum(vmax - vmin, min_scale))
 
 
+def reach(mm: MicroMesh) -> np.ndarray:
+    """(nv,) per base vertex, the length its micro-vertices' displacements span along its
+    direction (its tight bounds' range times |D|): its share of the shell's thickness."""
+    return tight_bounds(mm, 0.0).scale * np.linalg.norm(mm.directions, axis=1)
+
+
 def lp_bounds(mm: MicroMesh, min_scale: float = 1e-6, smoothing: float = 0.0) -> DirectionBounds:
     """The bounds of least shell volume that still hold every micro-vertex (ours).
 

@@ -248,7 +248,7 @@ def test_a_base_vertex_whose_shell_the_base_round_thickens_is_put_back(monkeypat
     monkeypatch.setattr(fin, "fit_rounds", fake_fit)
     run = SimpleNamespace(s=preset("default"), timer=PhaseTimer(), notes={},
                           h=mean_edge_length(base.vertices, base.faces))
-    assert fin._spans(fake_fit(run, mm, None, 1.0)).max() > 3 * fin._spans(mm).max()
+    assert fin.reach(fake_fit(run, mm, None, 1.0)).max() > 3 * fin.reach(mm).max()
     calls.clear()
     out = fin._base_moved(run, mm, None)
     assert calls == [run.s.fit_base_stiffness, 0.0]

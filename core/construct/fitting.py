@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from ..bounds import micromesh_shell_volume, tight_bounds
+from ..bounds import micromesh_shell_volume, reach, tight_bounds
 from ..fit import Samples, fit_directions, fit_micromesh, fit_samples, surface_errors
 from ..micromesh import MicroMesh
 from .choose_levels import residual_exchange
@@ -103,13 +103,13 @@ _SHELL_GROWTH = 1.1
 def _base_moved(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
     """One fit round with the base vertices as unknowns. On parts thinner than the samples'
     spacing a base vertex can be pulled across to the far side, and its shell with it: a
-    vertex whose span (the thickness of its shell, ``_spans``) grows past ``_SPAN_GROWTH``
+    vertex whose span (the thickness of its shell, ``core.bounds.reach``) grows past ``_SPAN_GROWTH``
     times its span before, plus ``_SPAN_FLOOR`` mean base edges, is put back, and the
     displacements are fitted again around it: a few such vertices would otherwise make the
     shell's cap refuse the whole round."""
     with run.timer.phase("fit"):
         moved = fit_rounds(run, mm, samples, run.s.fit_base_stiffness, rounds=1)
-        grown = _spans(moved) > _SPAN_GROWTH * _spans(mm) + _SPAN_FLOOR * run.h
+        grown = reach(moved) > _SPAN_GROWTH * reach(mm) + _SPAN_FLOOR * run.h
         run.notes.setdefault("base_fit_vertices_put_back", []).append(int(grown.sum()))
         if grown.any():
             vertices = moved.base.vertices.copy()
@@ -120,11 +120,6 @@ def _base_moved(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
 
 _SPAN_GROWTH = 2.0
 _SPAN_FLOOR = 0.01
-
-
-def _spans(mm: MicroMesh) -> np.ndarray:
-    """(nv,) each base vertex's shell thickness: its tight bounds' range times |D|."""
-    return tight_bounds(mm).scale * np.linalg.norm(mm.directions, axis=1)
 
 
 def _directions_turned(run: RunState, mm: MicroMesh, samples) -> MicroMesh:

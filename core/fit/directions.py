@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..bounds import tight_bounds
+from ..bounds import reach
 from ..micromesh import MicroMesh
 from .joint_sums import joint_system
 from .samples import CHUNK, Samples
@@ -65,19 +65,12 @@ def fit_directions(mm: MicroMesh, samples: Samples, smoothness: float = 1e-3,
     x = solve_normal_equations(M, b, np.concatenate([d, np.zeros(3 * nb)]), maxiter=STEPS,
                                blocks=nb, exact=False)
     turned = mm.directions + x[n:].reshape(3, nb).T
-    reach = _reach(mm)
-    widened = _reach(MicroMesh(mm.base, turned, mm.levels, x[:n], mm.topology)) > \
-        WIDENING * reach + 1e-12 * reach.max(initial=0.0)
+    before = reach(mm)
+    widened = reach(MicroMesh(mm.base, turned, mm.levels, x[:n], mm.topology)) > \
+        WIDENING * before + 1e-12 * before.max(initial=0.0)
     back = widened | ((turned * mm.directions).sum(1) <= 0)
     return MicroMesh(mm.base, np.where(back[:, None], mm.directions, turned), mm.levels, x[:n],
                      mm.topology)
-
-
-def _reach(mm: MicroMesh) -> np.ndarray:
-    """Per base vertex (nb,): the length its micro-vertices' displacements span along its
-    direction (its tight bounds' scale times the direction's length): its share of the
-    shell."""
-    return tight_bounds(mm, 0.0).scale * np.linalg.norm(mm.directions, axis=1)
 
 
 def _damping(diag: np.ndarray, damping: float) -> np.ndarray:
