@@ -47,51 +47,6 @@ class BakeResult:
 
 
 # ------------------------------------------------------------------------ nearest point
-def closest_points_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray,
-                                c: np.ndarray) -> np.ndarray:
-    """Exact closest point on triangle (a, b, c) to p, row-wise (Voronoi-region tests)."""
-    ab, ac, ap = b - a, c - a, p - a
-    d1 = np.einsum("ij,ij->i", ab, ap)
-    d2 = np.einsum("ij,ij->i", ac, ap)
-    bp = p - b
-    d3 = np.einsum("ij,ij->i", ab, bp)
-    d4 = np.einsum("ij,ij->i", ac, bp)
-    cp = p - c
-    d5 = np.einsum("ij,ij->i", ab, cp)
-    d6 = np.einsum("ij,ij->i", ac, cp)
-    va = d3 * d6 - d5 * d4
-    vb = d5 * d2 - d1 * d6
-    vc = d1 * d4 - d3 * d2
-
-    def ratio(num, den):
-        ok = den != 0
-        return np.where(ok, num / np.where(ok, den, 1.0), 0.0)
-
-    denom = va + vb + vc
-    v_in = ratio(vb, denom)
-    w_in = ratio(vc, denom)
-    out = a + ab * v_in[:, None] + ac * w_in[:, None]                      # face interior
-    w_bc = np.clip(ratio(d4 - d3, (d4 - d3) + (d5 - d6)), 0, 1)
-    m = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
-    out = np.where(m[:, None], b + (c - b) * w_bc[:, None], out)           # edge bc
-    w_ac = np.clip(ratio(d2, d2 - d6), 0, 1)
-    m = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-    out = np.where(m[:, None], a + ac * w_ac[:, None], out)                # edge ac
-    m = (d6 >= 0) & (d5 <= d6)
-    out = np.where(m[:, None], c, out)                                     # vertex c
-    v_ab = np.clip(ratio(d1, d1 - d3), 0, 1)
-    m = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-    out = np.where(m[:, None], a + ab * v_ab[:, None], out)                # edge ab
-    m = (d3 >= 0) & (d4 <= d3)
-    out = np.where(m[:, None], b, out)                                     # vertex b
-    m = (d1 <= 0) & (d2 <= 0)
-    out = np.where(m[:, None], a, out)                                     # vertex a
-    return out
-
-
-_SCENE_CACHE: "weakref.WeakKeyDictionary[TriMesh, _RayScene]" = weakref.WeakKeyDictionary()
-
-
 def nearest_points(points: np.ndarray, reference: TriMesh, *,
                    workers: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Exact nearest surface point of ``reference`` for each point: (points (n,3), face, distance).
@@ -106,6 +61,9 @@ def nearest_points(points: np.ndarray, reference: TriMesh, *,
 
 
 # ------------------------------------------------------------------------------- rays
+_SCENE_CACHE: "weakref.WeakKeyDictionary[TriMesh, _RayScene]" = weakref.WeakKeyDictionary()
+
+
 class _RayScene:
     """An Embree scene of the reference, float32, centred on its bounding box."""
 

@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from core.bake import (SOURCE_NEAREST, SOURCE_NEGATIVE, SOURCE_POSITIVE, BakeError,
-                       bake_displacements, closest_points_on_triangles, nearest_points)
+                       bake_displacements, nearest_points)
 from core.mesh import TriMesh
+from oracles import triangle_distances
 
 R = 2.5
 
@@ -133,23 +134,9 @@ def test_nearest_points_exact_against_brute_force():
     m = TriMesh(v, f)
     q = rng.normal(size=(400, 3)) * 3
     p, face, dist = nearest_points(q, m)
-    tri = v[f]
-    qq = np.repeat(q, len(f), axis=0)
-    t = np.tile(tri, (len(q), 1, 1))
-    cp = closest_points_on_triangles(qq, t[:, 0], t[:, 1], t[:, 2])
-    brute = np.linalg.norm(cp - qq, axis=1).reshape(len(q), len(f)).min(1)
+    brute = triangle_distances(q, v, f).min(1)
     assert np.allclose(dist, brute, atol=1e-12)
     assert np.allclose(np.linalg.norm(p - q, axis=1), dist)
-
-
-def test_closest_point_regions():
-    a, b, c = np.array([[0, 0, 0.]]), np.array([[1, 0, 0.]]), np.array([[0, 1, 0.]])
-    cases = {(-1, -1, 0): (0, 0, 0), (2, -0.5, 1): (1, 0, 0), (-0.5, 3, 0): (0, 1, 0),
-             (0.5, -1, 2): (0.5, 0, 0), (-1, 0.25, 0): (0, 0.25, 0), (1, 1, 0): (0.5, 0.5, 0),
-             (0.2, 0.3, -4): (0.2, 0.3, 0)}
-    for p, e in cases.items():
-        cp = closest_points_on_triangles(np.array([p], float), a, b, c)
-        assert np.allclose(cp[0], e), (p, cp)
 
 
 def test_bad_input(sphere):

@@ -7,45 +7,18 @@ import pytest
 from core.closest import ClosestPointError, ClosestPointIndex, closest_point_index, index_on
 from core.mesh import TriMesh
 from core.runtime.threads import default_threads, threads
-
-
-def _seg(p, a, b):
-    """Closest points on segments ab (row-wise)."""
-    u = b - a
-    uu = np.einsum("ij,ij->i", u, u)
-    t = np.einsum("ij,ij->i", p - a, u) / np.where(uu > 0, uu, 1.0)
-    t = np.clip(np.where(uu > 0, t, 0.0), 0, 1)
-    return a + t[:, None] * u
-
-
-def _brute(q, v, f):
-    """Distance from each point to every triangle, by a formulation independent of Ericson's:
-    the plane foot where it lies inside a non-degenerate triangle, else the nearest edge point."""
-    tri = v[f]
-    qq = np.repeat(q, len(f), axis=0)
-    a, b, c = (np.tile(tri[:, k], (len(q), 1)) for k in range(3))
-    cands = [_seg(qq, a, b), _seg(qq, b, c), _seg(qq, c, a)]
-    d = np.stack([np.linalg.norm(x - qq, axis=1) for x in cands], 1).min(1)
-    n = np.cross(b - a, c - a)
-    nn = np.einsum("ij,ij->i", n, n)
-    ok = nn > 1e-20 * np.einsum("ij,ij->i", b - a, b - a) * np.einsum("ij,ij->i", c - a, c - a)
-    foot = qq - (np.einsum("ij,ij->i", qq - a, n) / np.where(ok, nn, 1.0))[:, None] * n
-    inside = ok.copy()
-    for x, y in ((a, b), (b, c), (c, a)):  # foot on the inner side of every edge
-        inside &= np.einsum("ij,ij->i", np.cross(y - x, foot - x), n) >= 0
-    d = np.where(inside, np.minimum(d, np.linalg.norm(foot - qq, axis=1)), d)
-    return d.reshape(len(q), len(f))
+from oracles import triangle_distances
 
 
 def _check(idx, q, v, f, **kw):
     p, face, dist = idx.query(q, **kw)
-    d = _brute(q, v, f)
+    d = triangle_distances(q, v, f)
     best = d.min(1)
     assert np.allclose(dist, best, rtol=1e-12, atol=1e-12)
     # The reported face attains the minimum, and the reported point is on it, at that distance.
     assert np.allclose(d[np.arange(len(q)), face], best, rtol=1e-12, atol=1e-12)
     assert np.allclose(np.linalg.norm(p - q, axis=1), dist, rtol=1e-12, atol=1e-12)
-    on = _brute(p, v, f)[np.arange(len(q)), face]
+    on = triangle_distances(p, v, f)[np.arange(len(q)), face]
     assert on.max() < 1e-12 * max(1.0, np.abs(v).max())
     return p, face, dist
 
