@@ -14,8 +14,8 @@ import numpy as np
 from .mesh import TriMesh
 from .level_grid import BUILD_MAX_LEVEL, MAX_LEVEL, LevelError, bird_order
 from .micro_locate import locate
-from .microtopology import (MicroTopology, as_levels, balance_levels, build_topology,
-                            count_micro_vertices, is_balanced)
+from .mesh_levels import as_levels, balance_levels, count_micro_vertices, is_balanced
+from .microtopology import MicroTopology, build_topology
 
 
 class MicroMeshError(ValueError):

@@ -1,7 +1,7 @@
-"""Micro-mesh topology: levels on a base mesh (balancing, edge-decimation flags) and the one
-canonical index space of unique micro-vertices. One triangle at one level (grids, vertex
-orders, snapping) is ``core.level_grid``, whose names are imported here too. Nothing here
-looks at positions.
+"""Micro-mesh topology: the one canonical index space of unique micro-vertices of a base mesh
+at given levels (the levels themselves, checked, balanced and flagged: ``core.mesh_levels``).
+One triangle at one level (grids, vertex orders, snapping) is ``core.level_grid``, whose names
+are imported here too. Nothing here looks at positions.
 """
 from __future__ import annotations
 
@@ -15,66 +15,7 @@ from .level_grid import (  # noqa: F401  (the per-level API, imported from here 
     snap_targets_view, _snapped_k, barycentric_weights, bird_index, bird_order, level_grid,
     level_triangles, n_micro_triangles, n_micro_vertices, snap_targets, umajor_index)
 from .mesh import TriMesh
-
-# -------------------------------------------------------------------------- mesh level
-def as_levels(mesh: TriMesh, levels) -> np.ndarray:
-    """``levels`` (a scalar or one per face) as an (n_faces,) int64 array; shape checked."""
-    lv = np.asarray(levels)
-    if lv.ndim == 0:
-        lv = np.full(mesh.n_faces, lv)
-    if lv.shape != (mesh.n_faces,):
-        raise LevelError(f"need one level per base face ({mesh.n_faces}), got shape {lv.shape}")
-    if lv.dtype.kind not in "iub":
-        if lv.dtype.kind != "f" or not np.all(np.isfinite(lv)) or np.any(lv != np.round(lv)):
-            raise LevelError("subdivision levels must be integers")
-    return lv.astype(np.int64)
-
-
-def _edge_min_max(mesh: TriMesh, lv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    ptr, idx = mesh.edge_faces_csr
-    vals = lv[idx]
-    return np.minimum.reduceat(vals, ptr[:-1]), np.maximum.reduceat(vals, ptr[:-1])
-
-
-def balance_levels(mesh: TriMesh, levels) -> np.ndarray:
-    """Clamp to 0..5, then raise the lower side until faces sharing an edge (all faces of a
-    non-manifold edge) differ by at most one level. Never lowers a (clamped) level."""
-    lv = np.clip(as_levels(mesh, levels), 0, MAX_LEVEL)
-    fe = mesh.face_edges
-    while True:
-        _, emax = _edge_min_max(mesh, lv)
-        new = np.maximum(lv, emax[fe].max(axis=1) - 1)
-        if np.array_equal(new, lv):
-            return lv
-        lv = new
-
-
-def is_balanced(mesh: TriMesh, levels) -> bool:
-    lv = as_levels(mesh, levels)
-    if lv.min() < 0 or lv.max() > MAX_LEVEL:
-        return False
-    emin, emax = _edge_min_max(mesh, lv)
-    return bool((emax - emin <= 1).all())
-
-
-def edge_flags(mesh: TriMesh, levels) -> np.ndarray:
-    """(nf,) uint8: bit i set ⇔ a face across edge i has a level one lower."""
-    lv = as_levels(mesh, levels)
-    emin, _ = _edge_min_max(mesh, lv)
-    low = emin[mesh.face_edges] == lv[:, None] - 1
-    return (low[:, 0] * 1 + low[:, 1] * 2 + low[:, 2] * 4).astype(np.uint8)
-
-
-def _edge_levels(mesh: TriMesh, lv: np.ndarray) -> np.ndarray:
-    return _edge_min_max(mesh, lv)[0]
-
-
-def count_micro_vertices(mesh: TriMesh, levels) -> int:
-    """Size of the canonical micro-vertex index space (without building it)."""
-    lv = as_levels(mesh, levels)
-    s_e = 1 << _edge_levels(mesh, lv)
-    s_f = 1 << lv
-    return int(mesh.n_vertices + (s_e - 1).sum() + ((s_f - 1) * (s_f - 2) // 2).sum())
+from .mesh_levels import as_levels, edge_flags, edge_min_max
 
 
 @dataclass(eq=False)
@@ -122,7 +63,7 @@ def build_topology(mesh: TriMesh, levels) -> MicroTopology:
     lv = as_levels(mesh, levels)
     if lv.min() < 0 or lv.max() > MAX_LEVEL:
         raise LevelError(f"subdivision levels must lie in 0..{MAX_LEVEL}")
-    emin, emax = _edge_min_max(mesh, lv)
+    emin, emax = edge_min_max(mesh, lv)
     if (emax - emin > 1).any():
         raise LevelError("levels of neighbouring faces differ by more than one; "
                          "call balance_levels first")

@@ -333,7 +333,7 @@ def test_post_process_lod_with_byte_budget(scene):
     """Algorithm 2 end to end: uniform optimisation to ℓmax, then roll back to a byte budget
     between uniform level 1 and 2; the result fits, is balanced and only ever lowers levels."""
     from core.metrics import storage_bytes
-    from core.microtopology import balance_levels
+    from core.mesh_levels import balance_levels
 
     ref, base = scene
     cost = lambda lv: storage_bytes(lv, base.n_vertices)["total"]  # noqa: E731
@@ -386,7 +386,7 @@ def test_time_limit_compresses_schedule(scene):
 
 def test_fixed_levels_refine_displacements_only(scene):
     ref, base = scene
-    from core.microtopology import balance_levels, is_balanced
+    from core.mesh_levels import balance_levels, is_balanced
 
     rng = np.random.default_rng(7)
     raw = rng.integers(0, 3, base.n_faces)

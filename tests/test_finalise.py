@@ -19,7 +19,7 @@ def test_residual_exchange_moves_levels_to_where_the_fit_misses():
 
     from core.construct.choose_levels import residual_exchange
     from core.lod import effective_micro_triangles
-    from core.microtopology import is_balanced
+    from core.mesh_levels import is_balanced
 
     v, f = icosphere(2)
     base = TriMesh(v, f)
@@ -45,7 +45,7 @@ def test_quiet_faces_go_down_to_min_level(min_level):
 
     from core.construct.choose_levels import residual_exchange
     from core.lod import effective_micro_triangles
-    from core.microtopology import is_balanced
+    from core.mesh_levels import is_balanced
 
     assert preset("default").min_level == 0 and preset("paper").min_level == 1
     v, f = icosphere(2)

@@ -11,7 +11,7 @@ from core.fit import (FitError, fit_displacements, fit_micromesh, fit_samples, n
 from core.laplacian import uniform_laplacian
 from core.mesh import TriMesh
 from core.micromesh import MicroMesh
-from core.microtopology import balance_levels
+from core.mesh_levels import balance_levels
 
 
 def mean_distance(reference: TriMesh, mm: MicroMesh) -> float:

@@ -16,7 +16,7 @@ from core.io.micromesh_export import write_micromesh
 from core.maps import bake_maps
 from core.mesh import TriMesh
 from core.micromesh import MicroMesh
-from core.microtopology import balance_levels
+from core.mesh_levels import balance_levels
 from core.primitives import icosphere
 
 ROOT = Path(__file__).resolve().parents[1]

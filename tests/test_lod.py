@@ -7,7 +7,7 @@ from core.lod import (LodError, chamfer_face_errors, effective_micro_triangles, 
                       roll_back_to_budget, trim_to_budget)
 from core.mesh import TriMesh
 from core.micromesh import MicroMesh
-from core.microtopology import balance_levels, is_balanced
+from core.mesh_levels import balance_levels, is_balanced
 
 
 def _grid(n=6):

@@ -7,9 +7,8 @@ from hypothesis import given, settings, strategies as st
 
 from shapes import icosahedron, torus
 from core.micromesh import MicroMesh, MicroMeshError, Tessellation
-from core.microtopology import (
-    balance_levels, barycentric_weights, bird_order, snap_targets, umajor_index,
-)
+from core.mesh_levels import balance_levels
+from core.microtopology import barycentric_weights, bird_order, snap_targets, umajor_index
 
 
 def closed(tris: np.ndarray) -> bool:

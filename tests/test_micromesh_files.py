@@ -20,7 +20,8 @@ from core.io.micromesh_import import MicromeshFileError, read_micromesh
 from core.mesh import TriMesh
 from core.metrics import mmt_formula_bytes
 from core.micromesh import MicroMesh
-from core.microtopology import balance_levels, bird_index, edge_flags
+from core.mesh_levels import balance_levels, edge_flags
+from core.microtopology import bird_index
 from core.primitives import icosphere
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"

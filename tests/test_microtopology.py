@@ -7,12 +7,10 @@ from hypothesis import given, settings, strategies as st
 
 from shapes import icosahedron, icosphere, torus
 from core.mesh import TriMesh
+from core.mesh_levels import balance_levels, count_micro_vertices, edge_flags
 from core.microtopology import (
-    MAX_LEVEL,
-    LevelError, balance_levels, barycentric_weights, bird_index, bird_order, build_topology,
-    count_micro_vertices, edge_flags, level_grid, level_triangles, n_micro_triangles,
-    n_micro_vertices, snap_targets, umajor_index,
-)
+    MAX_LEVEL, LevelError, barycentric_weights, bird_index, bird_order, build_topology, level_grid,
+    level_triangles, n_micro_triangles, n_micro_vertices, snap_targets, umajor_index)
 
 
 # ------------------------------------------------------------------ test meshes

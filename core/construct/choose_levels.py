@@ -7,7 +7,7 @@ import numpy as np
 from ..lod import (exchange_to_budget, in_optimization_lod, post_process_lod, relative_gain,
                    roll_back_to_budget, trim_to_budget)
 from ..micromesh import MicroMesh
-from ..microtopology import balance_levels
+from ..mesh_levels import balance_levels
 from .scene import face_errors
 from .state import RunState
 

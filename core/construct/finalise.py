@@ -16,7 +16,7 @@ import numpy as np
 from ..bounds import baked, lp_bounds, micromesh_shell_volume, tight_bounds, unit_bounds
 from ..mesh import TriMesh
 from ..micromesh import MicroMesh
-from ..microtopology import balance_levels
+from ..mesh_levels import balance_levels
 from ..fit import surface_errors
 from .choose_levels import final_levels
 from .evaluate import eval_cameras, evaluate

@@ -15,7 +15,7 @@ from ..cameras import Cameras, fibonacci_cameras
 from ..mesh import TriMesh
 from ..normalization import Normalization
 from ..micromesh import MicroMesh
-from ..microtopology import balance_levels
+from ..mesh_levels import balance_levels
 from ..orient import orient
 from ..settings import ConstructSettings
 from .types import ConstructCancelled, ConstructError, Progress

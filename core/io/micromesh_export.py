@@ -19,7 +19,7 @@ import numpy as np
 from ..bounds import DirectionBounds, normalized_values, tight_bounds
 from ..micromesh import MicroMesh
 from ..level_grid import BUILD_MAX_LEVEL
-from ..microtopology import edge_flags
+from ..mesh_levels import edge_flags
 from .bary import (LAYOUT_BIRD, LAYOUT_UMAJOR, R11_UNORM_PACK16, R11_UNORM_PACKED_ALIGN32,
                    BaryFile, Group, TRIANGLE, encode)
 from .bary_values import FORMAT_NAMES, encode_values, quantize11

@@ -10,7 +10,7 @@ import numpy as np
 from ..mesh import TriMesh
 from ..micromesh import MicroMesh, MicroMeshError
 from ..level_grid import LevelError, snap_targets
-from ..microtopology import edge_flags, is_balanced
+from ..mesh_levels import edge_flags, is_balanced
 
 
 class MicromeshFileError(ValueError):

@@ -8,7 +8,7 @@ format's edge flags can stitch.
 """
 from __future__ import annotations
 
-from ..microtopology import balance_levels, is_balanced
+from ..mesh_levels import balance_levels, is_balanced
 from .algorithms import in_optimization_lod, post_process_lod
 from .budget import exchange_to_budget, roll_back_to_budget, trim_to_budget
 from .counts import (balance_levels_adjacency, effective_micro_triangles, micro_triangle_count,
