@@ -14,6 +14,7 @@ import numpy as np
 from .mesh import TriMesh
 from .level_grid import BUILD_MAX_LEVEL, MAX_LEVEL, LevelError, bird_order
 from .micro_locate import locate
+from .micro_resample import resampled_values
 from .mesh_levels import as_levels, balance_levels, count_micro_vertices, is_balanced
 from .microtopology import MicroTopology, build_topology
 
@@ -156,7 +157,7 @@ class MicroMesh:
         if np.array_equal(lv, self.levels):
             return self.with_displacements(self.displacements.copy()), np.ones(self.n_vertices, bool)
         topo = build_topology(self.base, lv)
-        values, kept = self._resample(topo)
+        values, kept = resampled_values(self, topo)
         return MicroMesh(self.base, self.directions, lv, values, topo), kept
 
     def subdivided(self, mask: np.ndarray | None = None) -> "MicroMesh":
@@ -172,31 +173,6 @@ class MicroMesh:
                 raise MicroMeshError(f"mask must be ({len(lv)},) bool or face indices")
             lv[mk] += 1
         return self.with_levels(balance_levels(self.base, np.minimum(lv, BUILD_MAX_LEVEL)))
-
-    def _resample(self, topo: MicroTopology) -> tuple[np.ndarray, np.ndarray]:
-        nb = topo.n_base_vertices
-        out = np.zeros(topo.n_vertices)
-        kept = np.zeros(topo.n_vertices, bool)
-        out[:nb] = self.displacements[:nb]  # base vertices keep their value (used or not)
-        kept[:nb] = True
-        sel = np.flatnonzero(topo.vertex_face >= 0)
-        sel = sel[sel >= nb]
-        if len(sel) == 0:
-            return out, kept
-        idx, w = locate(self.topology, topo.vertex_face[sel], topo.vertex_bary[sel])
-        old = self.micro_vertex_positions()
-        X = np.einsum("qk,qkc->qc", w, old[idx])
-        P = topo.interp[sel] @ self.base.vertices
-        D = topo.interp[sel] @ self.directions
-        nn = (D * D).sum(1)
-        lin = (w * self.displacements[idx]).sum(1)
-        d = np.where(nn > 1e-300, (D * (X - P)).sum(1) / np.maximum(nn, 1e-300), lin)
-        k = w.argmax(1)
-        same = w[np.arange(len(k)), k] >= 1.0 - 1e-12
-        d[same] = self.displacements[idx[np.arange(len(k)), k]][same]
-        out[sel] = d
-        kept[sel] = same
-        return out, kept
 
     # ---------------------------------------------------------------------- export
     def face_values(self, order: str = "umajor") -> tuple[np.ndarray, np.ndarray]:
