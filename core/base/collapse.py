@@ -18,62 +18,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..runtime.jit import kernel
-from .eigh3 import eigh3
 from .links import compact_list
+from .placement import place, quadric_error_at, triangle_quality
 
 RING = 4096          # neighbour buffer size (valences above it are truncated in pushes)
-FREE = 0.05          # eigenvalues of a quadric below FREE × the largest leave a direction free
 STATUS_TARGET, STATUS_EXHAUSTED, STATUS_STEPS, STATUS_GROW = 0, 1, 2, 3
-
-
-@kernel(cache=True)
-def _quality(ax, ay, az, bx, by, bz, cx, cy, cz):  # pragma: no cover - compiled
-    """2r/R of a triangle, and its (unnormalised) normal."""
-    e0x, e0y, e0z = bx - ax, by - ay, bz - az
-    e1x, e1y, e1z = cx - bx, cy - by, cz - bz
-    e2x, e2y, e2z = ax - cx, ay - cy, az - cz
-    nx = e0y * (-e2z) - e0z * (-e2y)
-    ny = e0z * (-e2x) - e0x * (-e2z)
-    nz = e0x * (-e2y) - e0y * (-e2x)
-    l0 = np.sqrt(e0x * e0x + e0y * e0y + e0z * e0z)
-    l1 = np.sqrt(e1x * e1x + e1y * e1y + e1z * e1z)
-    l2 = np.sqrt(e2x * e2x + e2y * e2y + e2z * e2z)
-    den = (l0 + l1 + l2) * l0 * l1 * l2
-    q = 4.0 * (nx * nx + ny * ny + nz * nz) / den if den > 0 else 0.0
-    return min(q, 1.0), nx, ny, nz
-
-
-@kernel(cache=True)
-def _qerr(q, x, y, z):  # pragma: no cover - compiled
-    return (q[0] * x * x + 2 * q[1] * x * y + 2 * q[2] * x * z + 2 * q[3] * x
-            + q[4] * y * y + 2 * q[5] * y * z + 2 * q[6] * y
-            + q[7] * z * z + 2 * q[8] * z + q[9])
-
-
-@kernel(cache=True)
-def _place(q, rx, ry, rz, scratch):  # pragma: no cover - compiled
-    """The minimiser of the quadric q nearest to the reference point r (Lindstrom's SVD
-    placement): exact in the directions the planes constrain (eigenvalues above ``FREE`` of
-    the largest), r itself along the rest (a flat region, a crease line). ``scratch`` is (6, 3)."""
-    a, vec = scratch[:3], scratch[3:]
-    a[0, 0], a[0, 1], a[0, 2] = q[0], q[1], q[2]
-    a[1, 0], a[1, 1], a[1, 2] = q[1], q[4], q[5]
-    a[2, 0], a[2, 1], a[2, 2] = q[2], q[5], q[7]
-    # residual g = -(A r + b)
-    g0 = -(q[0] * rx + q[1] * ry + q[2] * rz + q[3])
-    g1 = -(q[1] * rx + q[4] * ry + q[5] * rz + q[6])
-    g2 = -(q[2] * rx + q[5] * ry + q[7] * rz + q[8])
-    eigh3(a, vec)
-    top = max(a[0, 0], a[1, 1], a[2, 2], 1e-300)
-    x, y, z = rx, ry, rz
-    for i in range(3):
-        lam = a[i, i]
-        if lam > FREE * top:
-            c = (vec[0, i] * g0 + vec[1, i] * g1 + vec[2, i] * g2) / lam
-            x += c * vec[0, i]
-            y += c * vec[1, i]
-            z += c * vec[2, i]
-    return x, y, z
 
 
 @kernel(cache=True)
@@ -113,7 +62,7 @@ def candidate(u, v, V, F, Q, W, isb, locked, head, nxt, falive, smooth, alpha, q
                             cz += V[b, 2]
                             cnt += 1.0
                         p0, p1, p2 = F[f, 0], F[f, 1], F[f, 2]
-                        _, fx, fy, fz = _quality(V[p0, 0], V[p0, 1], V[p0, 2], V[p1, 0],
+                        _, fx, fy, fz = triangle_quality(V[p0, 0], V[p0, 1], V[p0, 2], V[p1, 0],
                                                  V[p1, 1], V[p1, 2], V[p2, 0], V[p2, 1], V[p2, 2])
                         nx += fx
                         ny += fy
@@ -125,17 +74,17 @@ def candidate(u, v, V, F, Q, W, isb, locked, head, nxt, falive, smooth, alpha, q
                 nx, ny, nz = nx / nn, ny / nn, nz / nn
                 t = (cx - mx) * nx + (cy - my) * ny + (cz - mz) * nz
                 lx, ly, lz = cx - t * nx, cy - t * ny, cz - t * nz
-        x, y, z = _place(q, lx, ly, lz, scratch)
+        x, y, z = place(q, lx, ly, lz, scratch)
         if (x - mx) ** 2 + (y - my) ** 2 + (z - mz) ** 2 > 4.0 * len2:
             # Ill-conditioned far away: the best of the two ends and the midpoint.
             x, y, z = mx, my, mz
-            best = _qerr(q, mx, my, mz)
+            best = quadric_error_at(q, mx, my, mz)
             for a in (u, v):
-                e = _qerr(q, V[a, 0], V[a, 1], V[a, 2])
+                e = quadric_error_at(q, V[a, 0], V[a, 1], V[a, 2])
                 if e < best:
                     best = e
                     x, y, z = V[a, 0], V[a, 1], V[a, 2]
-    err = max(_qerr(q, x, y, z), 0.0)
+    err = max(quadric_error_at(q, x, y, z), 0.0)
     return True, err, err + alpha * len2, x, y, z
 
 
@@ -152,7 +101,7 @@ def geometry_ok(u, v, x, y, z, V, F, head, nxt, falive, min_quality, min_dot, p)
             f = k // 3
             if falive[f]:
                 i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
-                qo, ox, oy, oz = _quality(V[i0, 0], V[i0, 1], V[i0, 2], V[i1, 0], V[i1, 1],
+                qo, ox, oy, oz = triangle_quality(V[i0, 0], V[i0, 1], V[i0, 2], V[i1, 0], V[i1, 1],
                                           V[i1, 2], V[i2, 0], V[i2, 1], V[i2, 2])
                 both = (i0 == u or i1 == u or i2 == u) and (i0 == v or i1 == v or i2 == v)
                 if a == u or not both:
@@ -163,7 +112,7 @@ def geometry_ok(u, v, x, y, z, V, F, head, nxt, falive, min_quality, min_dot, p)
                         vj = F[f, j]
                         p[j, 0], p[j, 1], p[j, 2] = V[vj, 0], V[vj, 1], V[vj, 2]
                     p[c, 0], p[c, 1], p[c, 2] = x, y, z
-                    qn, nx, ny, nz = _quality(p[0, 0], p[0, 1], p[0, 2], p[1, 0], p[1, 1],
+                    qn, nx, ny, nz = triangle_quality(p[0, 0], p[0, 1], p[0, 2], p[1, 0], p[1, 1],
                                               p[1, 2], p[2, 0], p[2, 1], p[2, 2])
                     ln = np.sqrt(nx * nx + ny * ny + nz * nz)
                     lo = np.sqrt(ox * ox + oy * oy + oz * oz)

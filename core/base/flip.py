@@ -24,7 +24,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..runtime.jit import kernel
-from .collapse import RING, _quality
+from .collapse import RING
+from .placement import triangle_quality
 from .links import ring
 
 GAIN = 1e-3        # the smallest rise of the worse quality that a flip must bring
@@ -76,7 +77,8 @@ def _unit(x, y, z):  # pragma: no cover - compiled
 @kernel(cache=True)
 def _face_quality(f, F, V):  # pragma: no cover - compiled
     i, j, k = F[f, 0], F[f, 1], F[f, 2]
-    return _quality(V[i, 0], V[i, 1], V[i, 2], V[j, 0], V[j, 1], V[j, 2], V[k, 0], V[k, 1], V[k, 2])
+    return triangle_quality(V[i, 0], V[i, 1], V[i, 2], V[j, 0], V[j, 1], V[j, 2],
+                            V[k, 0], V[k, 1], V[k, 2])
 
 
 @kernel(cache=True)
@@ -146,9 +148,9 @@ def try_flip(u, o, V, F, head, tail, nxt, falive, locked, mark, tag, buf, min_co
     if not _diagonals_within(u, o, a, b, V, max_gap):
         return False
     # The new faces (u, b, a) and (o, a, b).
-    p1, m1x, m1y, m1z = _quality(V[u, 0], V[u, 1], V[u, 2], V[b, 0], V[b, 1], V[b, 2],
+    p1, m1x, m1y, m1z = triangle_quality(V[u, 0], V[u, 1], V[u, 2], V[b, 0], V[b, 1], V[b, 2],
                                  V[a, 0], V[a, 1], V[a, 2])
-    p2, m2x, m2y, m2z = _quality(V[o, 0], V[o, 1], V[o, 2], V[a, 0], V[a, 1], V[a, 2],
+    p2, m2x, m2y, m2z = triangle_quality(V[o, 0], V[o, 1], V[o, 2], V[a, 0], V[a, 1], V[a, 2],
                                  V[b, 0], V[b, 1], V[b, 2])
     if min(p1, p2) < min(q1, q2) + GAIN:
         return False
