@@ -71,6 +71,8 @@ class ConstructSettings:
                                      # (paper), "rebake" (every micro-vertex, measurement)
     init_bake: bool = True           # start displacements from projection baking
     base_warm_up: bool = True        # at level 0 only the base moves (displacements 0)
+    hold_exact_base: bool = True     # base vertices whose star lies on the reference stay put
+                                     # (core.construct.held; ours)
     final_fit: bool = True           # fit the displacements to the reference at the end
                                      # (core.fit, least squares; ours)
     fit_smoothness: float = 1e-3     # weight of |L (|D| d)|² in the fit
@@ -181,7 +183,8 @@ PRESETS: dict[str, dict] = {
     "paper": dict(iterations=1600, subdivide_at=(50, 150, 400, 800), views_per_iter=24,
                   train_resolution=512, lod_resolution=512, max_level=4, freeze_base_at=1200,
                   lr_base=1e-3, lr_disp=1e-3, shading="shaded", init_new_levels="interpolate",
-                  final_fit=False, polish_steps=0, lod="in_optim", paper_losses=True),
+                  final_fit=False, polish_steps=0, lod="in_optim", paper_losses=True,
+                  hold_exact_base=False),
 }
 
 

@@ -52,12 +52,16 @@ class Parameters:
     """Base offsets and displacements of one construction, their optimiser and geometry.
 
     ``frozen_base``: the base is the caller's and never moves (fixed levels): the
-    micro-mesh handed back keeps the exact input positions.
+    micro-mesh handed back keeps the exact input positions. ``held`` (nv,) bool: base
+    vertices whose offsets stay zero (``core.construct.held``).
     """
 
     def __init__(self, base_u: TriMesh, mm: MicroMesh, s: ConstructSettings, device,
-                 frozen_base: bool = False):
+                 frozen_base: bool = False, held: np.ndarray | None = None):
         self.s, self.device, self.base, self.frozen_base = s, device, base_u, frozen_base
+        self.held = None if held is None or not held.any() else held
+        self.keep = None if self.held is None else torch.as_tensor(
+            ~held[:, None], dtype=torch.float32, device=device)
         nb = base_u.n_vertices
         L = uniform_laplacian(nb, base_u.faces)
         solver = ScreenedSolver(L, s.lambda_base) if s.reparameterize else None
@@ -92,6 +96,8 @@ class Parameters:
     def geometry(self, detach_base: bool = False):
         """(P, N, D, X): base positions, detached vertex normals, displacements, micro-vertices."""
         O = self.offsets.value()
+        if self.keep is not None:
+            O = O * self.keep
         if detach_base:
             O = O.detach()
         P = self.V0 + O
@@ -111,7 +117,11 @@ class Parameters:
         with torch.no_grad():
             P, N, D, _ = self.geometry()
         old = self.mm
-        base = self.base if self.frozen_base else \
-            self.base.with_vertices(P.detach().double().cpu().numpy())
+        base = self.base
+        if not self.frozen_base:
+            moved = P.detach().double().cpu().numpy()
+            if self.held is not None:             # exactly where they were, not float32's
+                moved[self.held] = self.base.vertices[self.held]
+            base = self.base.with_vertices(moved)
         return MicroMesh(base, N.detach().double().cpu().numpy(), old.levels,
                          D.detach().double().cpu().numpy(), old.topology)

@@ -37,6 +37,7 @@ from .params import Parameters
 from .scene import Scene, bake
 from .schedule import Schedule
 from .state import RunState
+from .held import vertices_on_reference
 from .views import check_views
 from .types import ConstructCancelled, ConstructError, ConstructResult, Progress
 
@@ -147,6 +148,9 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     t_setup = time.perf_counter()
     run = _setup(reference, base, cameras, s, dev, should_stop, fixed)
     run.progress = progress
+    if s.hold_exact_base and run.fixed is None:
+        run.held = vertices_on_reference(run.base, run.scene.ref)
+        run.notes["held_vertices"] = int(run.held.sum())
     # The loop leaves time for the fit and the metrics; polishing takes what is left of the
     # time limit (it stops at the deadline), but the time left shown counts it.
     reserve = guess.phases["fit"] + guess.phases["metrics"]
@@ -161,7 +165,8 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
         target_all = run.scene.images(run.scene.cams)
     with run.timer.phase("init"):
         mm = _initial_micromesh(run)
-        params = Parameters(run.base, mm, s, run.device, frozen_base=run.fixed is not None)
+        params = Parameters(run.base, mm, s, run.device, frozen_base=run.fixed is not None,
+                            held=run.held)
     if run.fixed is not None:
         run.event(iteration=0, fixed_levels=True,
                   micro_triangles=effective_micro_triangles(run.fixed, run.base.face_adjacency))
