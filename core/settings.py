@@ -71,7 +71,7 @@ class ConstructSettings:
                                      # (paper), "rebake" (every micro-vertex, measurement)
     init_bake: bool = True           # start displacements from projection baking
     base_warm_up: bool = True        # at level 0 only the base moves (displacements 0)
-    hold_exact_base: bool = True     # base vertices whose star lies on the reference stay put
+    hold_exact_base: bool = True     # base vertices (or their stars) on the reference stay put
                                      # (core.construct.held; ours)
     final_fit: bool = True           # fit the displacements to the reference at the end
                                      # (core.fit, least squares; ours)

@@ -86,7 +86,7 @@ def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, 
     mm = MicroMesh.flat(base, levels)
     cost = lambda lv: effective_micro_triangles(lv, base.face_adjacency)  # noqa: E731
     run = SimpleNamespace(s=preset("default"), base=base, cost=cost, budget=cost(levels),
-                          fixed=None, held=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
+                          fixed=None, held_in_fit=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
                           notes={}, check_stop=lambda: None, deadline=np.inf,
                           announce=lambda phase: None,
                           h=mean_edge_length(base.vertices, base.faces))
@@ -149,7 +149,7 @@ def test_the_base_and_the_directions_move_only_where_it_helps(growth, monkeypatc
     ref = TriMesh(rv * (1 + 0.03 * np.sin(9 * rv[:, :1]) * np.sin(7 * rv[:, 1:2])), rf)
     mm = MicroMesh.flat(base, np.full(base.n_faces, 2))
     run = SimpleNamespace(s=preset("default", residual_lod=0.0), base=base, cost=None, budget=0,
-                          fixed=None, held=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
+                          fixed=None, held_in_fit=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
                           notes={}, check_stop=lambda: None, deadline=np.inf,
                           announce=lambda phase: None,
                           h=mean_edge_length(base.vertices, base.faces))
@@ -198,7 +198,7 @@ def test_an_optional_fit_stage_leaves_room_for_the_bounds_after_it(tail, monkeyp
     rv, rf = icosphere(3)
     mm = MicroMesh.flat(base, np.full(base.n_faces, 1))
     run = SimpleNamespace(s=preset("default", residual_lod=0.0, fit_passes=1), base=base,
-                          cost=None, budget=0, fixed=None, held=None,
+                          cost=None, budget=0, fixed=None, held_in_fit=None,
                           scene=SimpleNamespace(ref=TriMesh(rv * 1.02, rf)), timer=PhaseTimer(),
                           notes={}, check_stop=lambda: None,
                           deadline=time.perf_counter() + 600.0, announce=lambda phase: None,
@@ -247,7 +247,7 @@ def test_a_base_vertex_whose_shell_the_base_round_thickens_is_put_back(monkeypat
         return m.with_base_positions(moved).with_displacements(d)
 
     monkeypatch.setattr(fin, "fit_rounds", fake_fit)
-    run = SimpleNamespace(s=preset("default"), timer=PhaseTimer(), notes={}, held=None,
+    run = SimpleNamespace(s=preset("default"), timer=PhaseTimer(), notes={}, held_in_fit=None,
                           h=mean_edge_length(base.vertices, base.faces))
     assert fin.reach(fake_fit(run, mm, None, 1.0)).max() > 3 * fin.reach(mm).max()
     calls.clear()
@@ -267,9 +267,9 @@ def test_a_base_vertex_whose_shell_the_base_round_thickens_is_put_back(monkeypat
     # a held vertex (its star on the reference, core.construct.held) always goes back
     monkeypatch.setattr(fin, "fit_rounds", lambda run, m, samples, base_stiffness=0.0, **k: (
         m.with_base_positions(m.base.vertices + 1e-4 * m.directions) if base_stiffness else m))
-    run.held = np.zeros(base.n_vertices, bool)
-    run.held[far] = True
+    run.held_in_fit = np.zeros(base.n_vertices, bool)
+    run.held_in_fit[far] = True
     out = fin._base_moved(run, mm, None)
     np.testing.assert_array_equal(out.base.vertices[far], mm.base.vertices[far])
-    moved = ~run.held
+    moved = ~run.held_in_fit
     np.testing.assert_allclose(out.base.vertices[moved], (mm.base.vertices + 1e-4 * v)[moved])

@@ -111,8 +111,8 @@ def _base_moved(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
         moved = fit_rounds(run, mm, samples, run.s.fit_base_stiffness, rounds=1)
         grown = reach(moved) > _SPAN_GROWTH * reach(mm) + _SPAN_FLOOR * run.h
         run.notes.setdefault("base_fit_vertices_put_back", []).append(int(grown.sum()))
-        if run.held is not None:
-            grown |= run.held
+        if run.held_in_fit is not None:
+            grown |= run.held_in_fit
         if grown.any():
             vertices = moved.base.vertices.copy()
             vertices[grown] = mm.base.vertices[grown]

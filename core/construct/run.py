@@ -37,7 +37,7 @@ from .params import Parameters
 from .scene import Scene, bake
 from .schedule import Schedule
 from .state import RunState
-from .held import vertices_on_reference
+from .held import held_vertices
 from .views import check_views
 from .types import ConstructCancelled, ConstructError, ConstructResult, Progress
 
@@ -149,8 +149,9 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     run = _setup(reference, base, cameras, s, dev, should_stop, fixed)
     run.progress = progress
     if s.hold_exact_base and run.fixed is None:
-        run.held = vertices_on_reference(run.base, run.scene.ref)
-        run.notes["held_vertices"] = int(run.held.sum())
+        run.held_in_fit, run.held = held_vertices(run.base, run.scene.ref)
+        run.notes["held_vertices"] = {"optimiser": int(run.held.sum()),
+                                      "fit": int(run.held_in_fit.sum())}
     # The loop leaves time for the fit and the metrics; polishing takes what is left of the
     # time limit (it stops at the deadline), but the time left shown counts it.
     reserve = guess.phases["fit"] + guess.phases["metrics"]

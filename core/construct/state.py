@@ -62,7 +62,8 @@ class RunState:
     lod_cams: Cameras
     should_stop: Callable[[], bool]
     fixed: np.ndarray | None = None
-    held: np.ndarray | None = None     # base vertices that never move (core.construct.held)
+    held: np.ndarray | None = None     # base vertices the optimiser never moves and
+    held_in_fit: np.ndarray | None = None  # those the fit's base round puts back (construct.held)
     ref_tree: object = None
     h: float = 1.0                     # the base's initial mean edge length (unit frame)
     level: int = 0
