@@ -56,6 +56,19 @@ def test_random_soup_matches_brute_force(seed):
     assert (dist[-20:] == 0).all()
 
 
+def test_closest_point_regions_of_one_triangle():
+    """The point-triangle routine's Voronoi regions (each vertex, each edge, the face), through
+    the query as shipped."""
+    idx = ClosestPointIndex(np.array([[0, 0, 0.], [1, 0, 0.], [0, 1, 0.]]), np.array([[0, 1, 2]]))
+    cases = {(-1, -1, 0): (0, 0, 0), (2, -0.5, 1): (1, 0, 0), (-0.5, 3, 0): (0, 1, 0),
+             (0.5, -1, 2): (0.5, 0, 0), (-1, 0.25, 0): (0, 0.25, 0), (1, 1, 0): (0.5, 0.5, 0),
+             (0.2, 0.3, -4): (0.2, 0.3, 0)}
+    for p, e in cases.items():
+        cp, face, dist = idx.query(np.array([p], float))
+        assert np.allclose(cp[0], e), (p, cp)
+        assert face[0] == 0 and np.isclose(dist[0], np.linalg.norm(np.subtract(p, e)))
+
+
 def test_sphere_near_far_inside():
     v, f = _sphere(6)
     idx = ClosestPointIndex(v, f)

@@ -86,7 +86,8 @@ def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, 
     mm = MicroMesh.flat(base, levels)
     cost = lambda lv: effective_micro_triangles(lv, base.face_adjacency)  # noqa: E731
     run = SimpleNamespace(s=preset("default"), base=base, cost=cost, budget=cost(levels),
-                          fixed=None, held_in_fit=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
+                          fixed=None, held_in_fit=None, scene=SimpleNamespace(ref=ref),
+                          timer=PhaseTimer(),
                           notes={}, check_stop=lambda: None, deadline=np.inf,
                           announce=lambda phase: None,
                           h=mean_edge_length(base.vertices, base.faces))
@@ -149,7 +150,8 @@ def test_the_base_and_the_directions_move_only_where_it_helps(growth, monkeypatc
     ref = TriMesh(rv * (1 + 0.03 * np.sin(9 * rv[:, :1]) * np.sin(7 * rv[:, 1:2])), rf)
     mm = MicroMesh.flat(base, np.full(base.n_faces, 2))
     run = SimpleNamespace(s=preset("default", residual_lod=0.0), base=base, cost=None, budget=0,
-                          fixed=None, held_in_fit=None, scene=SimpleNamespace(ref=ref), timer=PhaseTimer(),
+                          fixed=None, held_in_fit=None, scene=SimpleNamespace(ref=ref),
+                          timer=PhaseTimer(),
                           notes={}, check_stop=lambda: None, deadline=np.inf,
                           announce=lambda phase: None,
                           h=mean_edge_length(base.vertices, base.faces))

@@ -103,8 +103,9 @@ _SHELL_GROWTH = 1.1
 def _base_moved(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
     """One fit round with the base vertices as unknowns. On parts thinner than the samples'
     spacing a base vertex can be pulled across to the far side, and its shell with it: a
-    vertex whose span (the thickness of its shell, ``core.bounds.reach``) grows past ``_SPAN_GROWTH``
-    times its span before, plus ``_SPAN_FLOOR`` mean base edges, is put back, and the
+    vertex whose span (the thickness of its shell, ``core.bounds.reach``) grows past
+    ``_SPAN_GROWTH`` times its span before, plus ``_SPAN_FLOOR`` mean base edges, is put back
+    (so are ``run.held_in_fit``, ``core.construct.held``), and the
     displacements are fitted again around it: a few such vertices would otherwise make the
     shell's cap refuse the whole round."""
     with run.timer.phase("fit"):
