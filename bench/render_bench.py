@@ -76,7 +76,7 @@ def numba_stages(verts, faces, cams, target, repeat: int) -> dict:
 
     from core.render import numba_path as NP
     from core.render import rasterize
-    from core.render.normals import vertex_normals_numba
+    from core.render.numba_geometry import vertex_normals_numba
 
     t = lambda fn: C.median_time(fn, repeat=repeat, warmup=1)  # noqa: E731
     r = rasterize(verts, faces, cams, backend="numba")

@@ -77,6 +77,34 @@ def test_split_balances_the_seconds():
     assert split(entries[:1], 3)[1:] == [[], []]
 
 
+def test_split_keeps_a_module_together():
+    """Kernels of one module share the kernels they call, which one process compiles once."""
+    from core.runtime.precompile import split
+
+    entries = [{"module": m, "name": f"{m}{i}", "seconds": s}
+               for i, (m, s) in enumerate([("a", 4), ("a", 4), ("b", 3), ("c", 3), ("d", 2)])]
+    parts = split(entries, 2)
+    where = {e["name"]: k for k, p in enumerate(parts) for e in p}
+    assert where["a0"] == where["a1"]
+    assert sorted(sum(e["seconds"] for e in p) for p in parts) == [8, 8]
+
+
+IMPORTS = r"""
+import sys
+sys.path.insert(0, sys.argv[1])
+from core.runtime import precompile
+for e in precompile.load():
+    precompile._dispatcher(e)
+print(sorted(m for m in ("torch", "scipy") if m in sys.modules))
+"""
+
+
+def test_compiling_processes_import_no_torch(tmp_path):
+    """A compiling process imports the listed kernels' modules only: no torch (a second or
+    more of each process's start on 2 cores)."""
+    assert "torch" not in _child(IMPORTS, tmp_path)
+
+
 def test_cold_cache_compiles_the_list_in_processes_of_its_own(tmp_path):
     """From an empty cache: every listed kernel is missing, the warm-up construction reports
     "compiling kernels", compiles none of the listed kernels itself and leaves all cached."""

@@ -1,19 +1,15 @@
 """Silhouette-edge bits per pixel: for each covered pixel, which edges of its face are
 silhouettes in that view (no neighbour across the edge, or a neighbour facing the other
-way). The rasteriser stores them as it goes (``raster``); :func:`edge_flags_numba` makes them
+way). The rasteriser stores them as it goes (``raster``); ``numba_geometry.edge_flags_numba`` makes them
 for a raster that lacks them (one made by the torch backend). The antialiasing reads them
 (``silhouette``)."""
 from __future__ import annotations
 
-import numpy as np
-import torch
 
 from ..runtime.borrow import borrow
 from ..runtime.jit import kernel
-from ..runtime.threads import parallel_for
 from .prefetch import FACE_AHEAD, prefetch
-from .projection import project, scratch, screen_area
-from .topology import face_neighbours_int32, faces_int32
+from .projection import project, screen_area
 
 
 @kernel()
@@ -60,16 +56,3 @@ def project_and_flag(verts, faces, nbr, mvp, width, height, scratch, facing, tri
             face_facing(faces, sc, fc)
             silhouette_flags(nbr, fc, tri[b], flags[b])
     return 0
-
-
-def edge_flags_numba(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor,
-                     tri: torch.Tensor) -> np.ndarray:
-    """Silhouette-edge bits (B, H, W) uint8 for a raster that lacks them."""
-    v = verts.detach().contiguous().numpy()
-    t = tri.contiguous().numpy()
-    flags = np.zeros(t.shape, dtype=np.uint8)
-    if len(faces) and len(t):
-        sc, fc = scratch(len(v), len(faces), len(t))
-        parallel_for(project_and_flag, len(sc), v, faces_int32(faces), face_neighbours_int32(faces),
-                     mvp.contiguous().numpy(), t.shape[2], t.shape[1], sc, fc, t, flags, parts=len(sc))
-    return flags

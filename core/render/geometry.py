@@ -7,11 +7,8 @@ from __future__ import annotations
 import torch
 
 from . import fused_normals
+from .lighting import NORMAL_EPS
 from .scatter import gather, scatter_add
-
-NORMAL_EPS = 1e-20
-"""Added to squared lengths before normalising, so that zero vectors give 0, never NaN (small
-enough to be negligible for real faces, large enough that float32 backward cannot overflow)."""
 
 
 def normalize(v: torch.Tensor) -> torch.Tensor:

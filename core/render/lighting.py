@@ -8,7 +8,10 @@ import math
 import numpy as np
 from numba import njit
 
-from .geometry import NORMAL_EPS
+NORMAL_EPS = 1e-20
+"""Added to squared lengths before normalising, so that zero vectors give 0, never NaN (small
+enough to be negligible for real faces, large enough that float32 backward cannot overflow).
+Both backends use it (``geometry``, the Triton kernels)."""
 
 
 @njit(inline="always")

@@ -1,4 +1,5 @@
-"""Numba area-weighted unit vertex normals with an analytic backward (CPU backend).
+"""Numba kernels of area-weighted unit vertex normals and their analytic backward (CPU
+backend; ``numba_geometry.vertex_normals_numba`` runs them on tensors).
 
 Same function as ``geometry.vertex_normals``: vn_v = normalize(sum over incident faces of
 (v1 - v0) x (v2 - v0)). Both passes are race-free: faces are processed in parallel, vertices
@@ -8,13 +9,9 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-import torch
 
 from ..runtime.jit import kernel
-from ..runtime.threads import parallel_for
-from .geometry import NORMAL_EPS
-from .topology import vertex_corners
+from .lighting import NORMAL_EPS
 
 
 @kernel(nogil=True, error_model="numpy")
@@ -82,46 +79,3 @@ def _verts_backward(verts, faces, graw, ptr, corners, gverts, lo, hi):
                 s2 -= p2 + q2
         gverts[v, 0], gverts[v, 1], gverts[v, 2] = s0, s1, s2
     return 0
-
-
-def _csr(faces: torch.Tensor, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Vertex -> corners CSR padded to n vertices (unreferenced trailing vertices: no corners)."""
-    ptr, corners = vertex_corners(faces)
-    if len(ptr) < n + 1:
-        ptr = np.concatenate([ptr, np.full(n + 1 - len(ptr), ptr[-1] if len(ptr) else 0, np.int64)])
-    return ptr, corners
-
-
-class VertexNormals(torch.autograd.Function):
-    """(N, 3) unit vertex normals of CPU verts (N, 3) and faces (M, 3)."""
-
-    @staticmethod
-    def forward(ctx, verts, faces):
-        v = verts.detach().contiguous().numpy()
-        f = faces.contiguous().numpy()
-        ptr, corners = _csr(faces, len(v))
-        fn = np.empty((len(f), 3), v.dtype)
-        parallel_for(_face_normals, len(f), v, f, fn)
-        vn = np.zeros((len(v), 3), v.dtype)
-        inv = np.zeros(len(v), np.float64)
-        parallel_for(_vertex_forward, len(v), fn, ptr, corners, vn, inv)
-        ctx.save_for_backward(verts)
-        ctx.stuff = (faces, vn, inv)
-        return torch.from_numpy(vn)
-
-    @staticmethod
-    def backward(ctx, gvn):
-        (verts,) = ctx.saved_tensors
-        faces, vn, inv = ctx.stuff
-        v = verts.detach().contiguous().numpy()
-        f = faces.contiguous().numpy()
-        graw = np.empty_like(vn)
-        parallel_for(_vertex_backward, len(vn), gvn.to(verts.dtype).contiguous().numpy(), vn, inv, graw)
-        ptr, corners = _csr(faces, len(v))
-        gverts = np.zeros_like(v)
-        parallel_for(_verts_backward, len(v), v, f, graw, ptr, corners, gverts)
-        return torch.from_numpy(gverts), None
-
-
-def vertex_normals_numba(verts: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
-    return VertexNormals.apply(verts, faces)

@@ -14,9 +14,7 @@ from ..runtime.threads import parallel_for
 from . import antialias as aa
 from . import shade as sk
 from . import silhouette, slots
-from .normals import vertex_normals_numba
-from .edge_flags import edge_flags_numba
-from .raster import rasterize_numba
+from .numba_geometry import edge_flags_numba, rasterize_numba, vertex_normals_numba
 from .sh import SH_QUADRATIC
 from .topology import face_neighbours_int32, faces_int32
 from .types import Raster

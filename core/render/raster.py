@@ -17,15 +17,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import torch
 from numba import njit
 
 from ..runtime.borrow import borrow
 from ..runtime.jit import kernel
-from ..runtime.threads import parallel_for
 from .edge_flags import silhouette_flags
-from .projection import project, scratch, screen_area
-from .topology import face_neighbours_int32, faces_int32
+from .projection import project, screen_area
 
 
 CHUNK = 1024
@@ -136,26 +133,3 @@ def _raster_kernel(verts, faces, nbr, mvp, width, height, scratch, facing, surv,
                 sparse = 2 * n < stop - start
             silhouette_flags(nbr, fc, tb, flags[b])
     return 0
-
-
-def _survivor_scratch(n_faces: int, slots: int) -> np.ndarray:
-    return np.empty((slots, min(n_faces, CHUNK)), dtype=np.int32)
-
-
-def rasterize_numba(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor, width: int,
-                    height: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """(tri_id int32 (B, H, W), depth float32 (B, H, W) +inf background, silhouette-edge
-    bits uint8 (B, H, W) of each pixel's face) on CPU tensors."""
-    v = verts.detach().contiguous().numpy()
-    f = faces_int32(faces)
-    m = mvp.contiguous().numpy()
-    nb = len(m)
-    tri = np.full((nb, height, width), -1, dtype=np.int32)
-    depth = np.full((nb, height, width), np.inf, dtype=np.float32)
-    flags = np.zeros((nb, height, width), dtype=np.uint8)
-    if len(f) and nb:
-        sc, fc = scratch(len(v), len(f), nb)
-        parallel_for(_raster_kernel, len(sc), v, f, face_neighbours_int32(faces), m, int(width),
-                     int(height), sc, fc, _survivor_scratch(len(f), len(sc)), tri, depth, flags,
-                     parts=len(sc))
-    return torch.from_numpy(tri), torch.from_numpy(depth), torch.from_numpy(flags)

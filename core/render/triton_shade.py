@@ -13,7 +13,7 @@ Arrays: verts, vn (N, 3) float; faces (M, 3) int64; mvp (B, 16) float64; tri (B 
 """
 from __future__ import annotations
 
-from .geometry import NORMAL_EPS
+from .lighting import NORMAL_EPS
 from .triton_kernels import tl, triton
 
 if triton is not None:
