@@ -9,20 +9,41 @@ per-entry Adam would undo, survives: a plain gradient step on x̄ moves x by
 from __future__ import annotations
 
 import math
+from collections import defaultdict
 from typing import Callable, Iterable
 
 import numpy as np
 import torch
 
 
-class UniformAdam(torch.optim.Optimizer):
-    """Adam whose denominator is one scalar per tensor: max(sqrt(v̂)) + eps."""
+class UniformAdam:
+    """Adam whose denominator is one scalar per tensor: max(sqrt(v̂)) + eps.
+
+    ``params``: tensors, or groups as ``torch.optim`` takes them (dicts with "params" and
+    their own "lr", "betas", "eps"). Not a ``torch.optim.Optimizer``: its constructor
+    imports torch's graph compiler (about 1.2 s, before a construction's first iteration),
+    and nothing here needs it.
+    """
 
     def __init__(self, params, lr: float = 1e-3, betas: tuple[float, float] = (0.9, 0.999),
                  eps: float = 1e-8):
         if lr <= 0:
             raise ValueError("learning rate must be positive")
-        super().__init__(params, dict(lr=lr, betas=tuple(betas), eps=eps))
+        params = list(params)
+        groups = params if params and isinstance(params[0], dict) else [{"params": params}]
+        defaults = dict(lr=lr, betas=tuple(betas), eps=eps)
+        self.param_groups = [{**defaults, **g, "params": list(g["params"])} for g in groups]
+        self.state: defaultdict[torch.Tensor, dict] = defaultdict(dict)
+
+    def zero_grad(self, set_to_none: bool = True) -> None:
+        for group in self.param_groups:
+            for p in group["params"]:
+                if p.grad is None:
+                    continue
+                if set_to_none:
+                    p.grad = None
+                else:
+                    p.grad.zero_()
 
     @torch.no_grad()
     def step(self, closure: Callable | None = None):

@@ -85,3 +85,32 @@ def test_clip_gradients():
 def test_uniform_adam_rejects_bad_lr():
     with pytest.raises(ValueError):
         UniformAdam([torch.nn.Parameter(torch.zeros(1))], lr=0.0)
+
+
+def test_uniform_adam_groups_keep_their_own_rates():
+    a = torch.nn.Parameter(torch.zeros(2, dtype=torch.float64))
+    b = torch.nn.Parameter(torch.zeros(2, dtype=torch.float64))
+    opt = UniformAdam([{"params": [a], "lr": 0.1}, {"params": [b], "lr": 0.2}], lr=0.5)
+    for p in (a, b):
+        p.grad = torch.tensor([1.0, -1.0], dtype=torch.float64)
+    opt.step()
+    assert torch.allclose(b.detach(), 2 * a.detach()) and float(a.detach()[0]) < 0
+    opt.zero_grad(set_to_none=True)
+    assert a.grad is None and b.grad is None
+
+
+def test_uniform_adam_leaves_torchs_graph_compiler_unimported():
+    """torch.optim.Optimizer's constructor imports torch._dynamo (about a second before a
+    construction's first iteration); UniformAdam does without it."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    code = ("import sys, torch; sys.path.insert(0, sys.argv[1]); from core.optim import "
+            "UniformAdam; p = torch.nn.Parameter(torch.ones(3)); o = UniformAdam([p]); "
+            "p.grad = torch.ones(3); o.step(); print('torch._dynamo' in sys.modules)")
+    r = subprocess.run([sys.executable, "-c", code, str(Path(__file__).resolve().parents[1])],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split()[-1] == "False"
+
