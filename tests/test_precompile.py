@@ -1,5 +1,6 @@
-"""Compiling the listed kernels in parallel processes (core/runtime/precompile.py): the list
-parses back into numba's types, its parts are balanced, and from an empty cache a construction
+"""Compiling the listed kernels in parallel processes (core/runtime/precompile.py,
+core/runtime/compiling.py): the list parses back into numba's types, its parts are balanced
+and ordered by the phase that first calls them, and from an empty cache a construction
 compiles the listed kernels in processes of their own (phase "compiling kernels") and itself
 compiles none of them; a stop request ends those processes at once."""
 from __future__ import annotations
@@ -42,10 +43,12 @@ print(json.dumps({"missing_before": missing, "phases": sorted(set(phases)),
 STOP = r"""
 import sys, time
 sys.path.insert(0, sys.argv[1])
-from core.runtime import precompile
+from core.runtime import compiling
 t = time.perf_counter()
-n = precompile.ensure(should_stop=lambda: True, processes=2)
-print(n, time.perf_counter() - t)
+c = compiling.start(processes=2)
+c.wait(should_stop=lambda: True)
+c.close()
+print(len(c.missing), time.perf_counter() - t)
 """
 
 
@@ -87,6 +90,24 @@ def test_split_keeps_a_module_together():
     where = {e["name"]: k for k, p in enumerate(parts) for e in p}
     assert where["a0"] == where["a1"]
     assert sorted(sum(e["seconds"] for e in p) for p in parts) == [8, 8]
+
+
+def test_plan_orders_each_part_by_phase():
+    """Each process compiles the kernels a construction calls first first: the base builder's
+    spread over the processes, then the renderer's, then the fit's."""
+    from core.runtime.compiling import PHASES, plan
+
+    entries = [{"module": m, "name": f"{m}{i}", "seconds": s, "phase": ph} for i, (m, s, ph) in
+               enumerate([("fit.a", 1, "fit"), ("render.a", 3, "views"), ("base.a", 4, "base"),
+                          ("render.b", 3, "views"), ("base.b", 3, "base"), ("bvh", 1, "base")])]
+    parts = plan(entries, 2)
+    rank = {p: k for k, p in enumerate(PHASES)}
+    assert sorted(e["name"] for p in parts for e in p) == sorted(e["name"] for e in entries)
+    for p in parts:
+        ranks = [rank.get(e["phase"], len(PHASES)) for e in p]
+        assert ranks == sorted(ranks)
+        assert p[0]["phase"] == "base"                 # both start on the base builder's
+    assert sorted(sum(e["seconds"] for e in p if e["phase"] == "base") for p in parts) == [4, 4]
 
 
 IMPORTS = r"""

@@ -22,9 +22,7 @@ from ..runtime.memory import keep_large_allocations, map_large_allocations, rele
 from ..mesh import TriMesh
 from ..normalization import unit_sphere_normalization
 from ..micromesh import MicroMesh
-from ..render import warm_up
 from ..settings import ConstructSettings
-from ..runtime import precompile
 from ..runtime.determinism import deterministic
 from ..runtime.machine import available_memory_bytes, peak_resident_bytes
 from ..runtime.threads import set_threads
@@ -38,8 +36,9 @@ from .scene import Scene, bake
 from .schedule import Schedule
 from .state import RunState
 from .held import held_vertices
+from .kernels import BASE, FIRST_ITERATION, Kernels
 from .views import check_views
-from .types import ConstructCancelled, ConstructError, ConstructResult, Progress
+from .types import ConstructError, ConstructResult, Progress
 
 
 def construct(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
@@ -110,16 +109,6 @@ def _initial_micromesh(run: RunState) -> MicroMesh:
     return mm.with_displacements(bake(mm, run.scene.ref, run.bake_distance))
 
 
-def _compile_kernels(progress, should_stop) -> None:
-    """The listed kernels the cache lacks, compiled in parallel (``runtime.precompile``)."""
-    report = None if progress is None else (
-        lambda done, total: progress(Progress("compiling kernels", done, total, float("nan"),
-                                              float("nan"), float("nan"))))
-    precompile.ensure(report, should_stop)
-    if should_stop is not None and should_stop():
-        raise ConstructCancelled("construction cancelled")
-
-
 def _construct(reference, base, cameras, settings, progress, should_stop, levels) -> ConstructResult:
     s = settings.validate()
     if base is None:
@@ -132,63 +121,71 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     check_fits(guess, available_memory_bytes())
     set_threads(s.threads)
     dev = torch_device(s.device)
-    # Compile the kernels first: a fresh checkout's JIT (minutes on 2 cores, halved by one
-    # compiling process per core) must not eat the time limit or distort the ETA. The time
-    # limit counts from here, the base building included.
-    _compile_kernels(progress, should_stop)
-    warm_up(dev, antialias=s.antialias)
-    t_start = time.perf_counter()
-    if progress is not None:   # loose parts, repeated faces and the winding (seconds at 1M)
-        progress(Progress("reference", 0, 1, 0.0, float("nan"), float("nan")))
-    reference, warnings = oriented_reference(reference)
-    base, base_report, base_warnings = prepare_base(reference, base, s, progress, should_stop)
-    warnings += base_warnings
-    fixed = fixed_levels(base, levels) if levels is not None else None
-    torch.manual_seed(s.seed)
-    t_setup = time.perf_counter()
-    run = _setup(reference, base, cameras, s, dev, should_stop, fixed)
-    run.progress = progress
-    if s.hold_exact_base and run.fixed is None:
-        run.held_in_fit, run.held = held_vertices(run.base, run.scene.ref)
-        run.notes["held_vertices"] = {"optimiser": int(run.held.sum()),
-                                      "fit": int(run.held_in_fit.sum())}
-    # The loop leaves time for the fit and the metrics; polishing takes what is left of the
-    # time limit (it stops at the deadline), but the time left shown counts it.
-    reserve = guess.phases["fit"] + guess.phases["metrics"]
-    run.finish_estimate_s = reserve + guess.phases["polish"]
-    if cameras is not None:
-        warnings += check_views(run.scene.ref, run.scene.cams, dev)
-    run.timer.times["setup"] = time.perf_counter() - t_setup
-    if base_report is not None:
-        run.timer.times["base"] = base_report["time_s"]
-    run.check_stop()
-    with run.timer.phase("reference_images"):
-        target_all = run.scene.images(run.scene.cams)
-    with run.timer.phase("init"):
-        mm = _initial_micromesh(run)
-        params = Parameters(run.base, mm, s, run.device, frozen_base=run.fixed is not None,
-                            held=run.held)
-    if run.fixed is not None:
-        run.event(iteration=0, fixed_levels=True,
-                  micro_triangles=effective_micro_triangles(run.fixed, run.base.face_adjacency))
-    schedule = Schedule(s, t_start, fixed_levels=run.fixed is not None, finish_s=reserve)
-    run.deadline = schedule.deadline
-    it_done = optimise(run, params, schedule, target_all, progress)
-    run.check_stop()
-    with run.timer.phase("finalize"):
-        mm = params.micromesh()
-    # The optimiser's state (its solver, moments, the renderer's last buffers) and the
-    # training images are not needed after the loop: free them before the fit's peak.
-    del params, target_all
-    map_large_allocations()
-    result = finalise(run, mm, reference, base, t_start, it_done, schedule.stopped_early)
-    result.metrics["warnings"] = warnings
-    result.metrics["estimate"] = {"seconds": guess.seconds, "peak_bytes": guess.peak_bytes}
-    result.metrics["peak_memory_bytes"] = peak_resident_bytes()
-    if base_report is not None:
-        result.metrics["base"] = base_report
-    if progress is not None:
-        h, n_it = run.history, s.iterations
-        progress(Progress("done", n_it, n_it, h["loss"][-1] if h["loss"] else 0.0,
-                          result.metrics.get("psnr", h["psnr"][-1] if h["psnr"] else 0.0), 0.0))
-    return result
+    # A fresh checkout's kernels are compiled in processes of their own while the
+    # construction goes on (.kernels); the time limit counts from here, the base building
+    # included, but not the waits for them, which must not eat it or distort the ETA.
+    with Kernels(progress, should_stop) as kernels:
+        t_start = time.perf_counter()
+        if progress is not None:   # loose parts, repeated faces and the winding (1M: seconds)
+            progress(Progress("reference", 0, 1, 0.0, float("nan"), float("nan")))
+        reference, warnings = oriented_reference(reference)
+        kernels.ready(BASE)
+        base, base_report, base_warnings = prepare_base(reference, base, s, progress,
+                                                        should_stop)
+        warnings += base_warnings
+        kernels.ready(FIRST_ITERATION)
+        if progress is not None:   # the cameras, the reference's images, the first values
+            progress(Progress("views", 0, 1, 0.0, float("nan"), float("nan")))
+        kernels.renderer_ready(dev, s.antialias)
+        t_start += kernels.waited
+        fixed = fixed_levels(base, levels) if levels is not None else None
+        torch.manual_seed(s.seed)
+        t_setup = time.perf_counter()
+        run = _setup(reference, base, cameras, s, dev, should_stop, fixed)
+        run.progress = progress
+        if s.hold_exact_base and run.fixed is None:
+            run.held_in_fit, run.held = held_vertices(run.base, run.scene.ref)
+            run.notes["held_vertices"] = {"optimiser": int(run.held.sum()),
+                                          "fit": int(run.held_in_fit.sum())}
+        # The loop leaves time for the fit and the metrics; polishing takes what is left of
+        # the time limit (it stops at the deadline), but the time left shown counts it.
+        reserve = guess.phases["fit"] + guess.phases["metrics"]
+        run.finish_estimate_s = reserve + guess.phases["polish"]
+        if cameras is not None:
+            warnings += check_views(run.scene.ref, run.scene.cams, dev)
+        run.timer.times["setup"] = time.perf_counter() - t_setup
+        if base_report is not None:
+            run.timer.times["base"] = base_report["time_s"]
+        run.check_stop()
+        with run.timer.phase("reference_images"):
+            target_all = run.scene.images(run.scene.cams)
+        with run.timer.phase("init"):
+            mm = _initial_micromesh(run)
+            params = Parameters(run.base, mm, s, run.device, frozen_base=run.fixed is not None,
+                                held=run.held)
+        if run.fixed is not None:
+            run.event(iteration=0, fixed_levels=True, micro_triangles=effective_micro_triangles(
+                run.fixed, run.base.face_adjacency))
+        schedule = Schedule(s, t_start, fixed_levels=run.fixed is not None, finish_s=reserve)
+        run.deadline = schedule.deadline
+        it_done = optimise(run, params, schedule, target_all, progress)
+        run.check_stop()
+        with run.timer.phase("finalize"):
+            mm = params.micromesh()
+        # The optimiser's state (its solver, moments, the renderer's last buffers) and the
+        # training images are not needed after the loop: free them before the fit's peak.
+        del params, target_all
+        map_large_allocations()
+        kernels.ready(None)
+        result = finalise(run, mm, reference, base, t_start, it_done, schedule.stopped_early)
+        result.metrics["warnings"] = warnings
+        result.metrics["estimate"] = {"seconds": guess.seconds, "peak_bytes": guess.peak_bytes}
+        result.metrics["peak_memory_bytes"] = peak_resident_bytes()
+        if base_report is not None:
+            result.metrics["base"] = base_report
+        if progress is not None:
+            h, n_it = run.history, s.iterations
+            psnr = result.metrics.get("psnr", h["psnr"][-1] if h["psnr"] else 0.0)
+            progress(Progress("done", n_it, n_it, h["loss"][-1] if h["loss"] else 0.0, psnr,
+                              0.0))
+        return result

@@ -1,12 +1,13 @@
-"""Compiling a construction's kernels in parallel processes before it starts.
+"""The kernels a construction compiles, listed, and the processes that compile them.
 
-numba compiles one kernel at a time in a process: a default construction's kernels take about
-two minutes on a slow 2-core machine. The kernels a construction calls from Python and their
-signatures are listed in ``kernels.json`` (with the seconds each took to compile, to balance
-the processes); the kernels they call are compiled inside them. :func:`ensure` finds the
-listed kernels that the on-disk cache lacks for this CPU and compiles them in one process per
-core (longest first, each to the least loaded process), which write them to the cache; the
-construction then loads them. On one core it does nothing: the run compiles as it goes.
+numba compiles one kernel at a time in a process: a default construction's kernels take a
+few minutes in one process on a slow 2-core machine. The kernels a construction calls from
+Python are listed in ``kernels.json`` with their signatures, the seconds each took to compile
+(to balance the processes) and the construction's phase when it was first called (to compile
+them in that order); the kernels they call are compiled inside them. ``compiling.start``
+compiles the listed kernels that the on-disk cache lacks for this CPU in one process per core
+(:func:`compile_listed`), which write them to the cache; the construction loads them from
+there. On one core nothing is compiled ahead: the run compiles as it goes.
 
 ``python -m core.runtime.precompile --write`` records the list again from the warm-up
 construction (``warm``) in a fresh process with an empty cache; a test checks that the list
@@ -18,22 +19,18 @@ import gc
 import importlib
 import json
 import os
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
-from typing import Callable
-
-from .child import command, here
 
 LIST = Path(__file__).with_name("kernels.json")
 _CORE = __name__.rsplit(".", 2)[0]                         # <...>.core
-_RECORDING = False                                          # record(): ensure() does nothing
+_RECORDING = False                             # record(): nothing is compiled ahead
 
 
 def load() -> list[dict]:
-    """The listed kernels: {"module" (relative to core), "name", "signature", "seconds"}."""
+    """The listed kernels: {"module" (relative to core), "name", "signature", "seconds",
+    "phase"}."""
     return json.loads(LIST.read_text(encoding="utf-8"))["kernels"]
 
 
@@ -92,23 +89,25 @@ def compile_listed(*indices: str) -> None:
     for i in indices:
         e = entries[int(i)]
         _dispatcher(e).compile(signature(e["signature"]))
-        print(_DONE, flush=True)
+        print(_DONE, i, flush=True)
     sys.stderr.flush()
     os._exit(0)
 
 
-# What a compiling process prints after each kernel: the caller counts these lines in its log
-# for the progress (asking the cache, twice a second, cost the compiling processes a fifth of
-# their time on 2 cores).
-_DONE = "precompile: compiled one"
+# What a compiling process prints after each kernel, with its index: the caller reads these
+# lines for what is done (asking the cache twice a second slowed the processes by a fifth).
+_DONE = "precompile: compiled"
 
 
-def _done(log: Path) -> int:
-    """How many kernels the process writing to ``log`` has compiled so far."""
-    try:
-        return log.read_bytes().count(_DONE.encode())
-    except OSError:
-        return 0
+def done_indices(log: bytes) -> set[int]:
+    """The indices of the kernels a compiling process's output ``log`` says are compiled."""
+    marker = _DONE.encode()
+    return {int(line.split()[-1]) for line in log.splitlines() if line.startswith(marker)}
+
+
+def recording() -> bool:
+    """Whether :func:`record` is running (nothing is compiled ahead then)."""
+    return _RECORDING
 
 
 def usable_cores() -> int:
@@ -118,59 +117,16 @@ def usable_cores() -> int:
         return os.cpu_count() or 1
 
 
-def ensure(progress: Callable[[int, int], None] | None = None,
-           should_stop: Callable[[], bool] | None = None, processes: int | None = None) -> int:
-    """Compile the listed kernels that the cache lacks, in ``processes`` processes (default:
-    one per usable core, at most 4); returns how many were missing (0 where it did nothing:
-    all cached, or one core). ``progress(done, total)`` about twice a second; ``should_stop()`` ends
-    the processes (what they finished stays cached)."""
-    if _RECORDING:
-        return 0
-    missing = [dict(e, index=i) for i, e in enumerate(load()) if not cached(e)]
-    n = min(processes or min(usable_cores(), 4), len(missing))
-    if n <= 1:
-        return 0
-    root, package = here()
-    paths = [p for p in sys.path if p and p != root]
-    with tempfile.TemporaryDirectory() as folder:
-        logs = [Path(folder) / f"{k}.log" for k in range(n)]
-        procs = []
-        for part, log in zip(split(missing, n), logs):
-            with open(log, "wb") as out:         # the process keeps its own handle
-                procs.append(subprocess.Popen(
-                    command(root, package, paths, "core.runtime.precompile", "compile_listed",
-                            *(e["index"] for e in part)),
-                    stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT))
-        try:
-            tick = 0
-            while any(p.poll() is None for p in procs):   # done within a tenth of a second
-                if should_stop is not None and should_stop():
-                    break
-                if progress is not None and tick % 5 == 0:
-                    progress(sum(_done(log) for log in logs), len(missing))
-                tick += 1
-                time.sleep(0.1)
-        finally:
-            for p in procs:
-                if p.poll() is None:
-                    p.terminate()
-                p.wait()
-        for p, log in zip(procs, logs):  # a failure costs time only: the run compiles the rest
-            if p.returncode > 0:
-                print("precompile: a compiling process failed:\n"
-                      + log.read_bytes().decode(errors="replace")[-2000:], file=sys.stderr)
-    return len(missing)
-
-
 def record() -> list[dict]:
-    """The kernels the warm-up construction compiles from Python, with their signatures and
-    seconds (run it with an empty cache: kernels loaded from the cache are not seen)."""
+    """The kernels the warm-up construction compiles from Python, with their signatures,
+    seconds and the construction's phase at the time (run it with an empty cache: kernels
+    loaded from the cache are not seen)."""
     from numba.core import event
 
     from .jit import _NamedCache
     from .warm import warm
 
-    found, stack = [], []
+    found, stack, phase = [], [], ["reference"]
 
     class Listener(event.Listener):
         def on_start(self, ev):
@@ -182,13 +138,13 @@ def record() -> list[dict]:
             if not stack and isinstance(getattr(d, "_cache", None), _NamedCache):
                 found.append({"module": d.py_func.__module__[len(_CORE) + 1:],
                               "name": d.py_func.__name__, "signature": repr(ev.data["args"]),
-                              "seconds": round(seconds, 2)})
+                              "seconds": round(seconds, 2), "phase": phase[0]})
 
     global _RECORDING
     event.register("numba:compile", Listener())
     _RECORDING = True
     try:
-        warm()
+        warm(progress=lambda p: phase.__setitem__(0, p))
     finally:
         _RECORDING = False
     return sorted(found, key=lambda e: (e["module"], e["name"], e["signature"]))
@@ -198,9 +154,10 @@ def _write() -> None:
     entries = record()
     if not entries:
         raise SystemExit("nothing compiled: the cache is warm; run with an empty NUMBA_CACHE_DIR")
-    text = json.dumps({"about": "kernels a construction calls from Python, their signatures "
-                                "and compile seconds (python -m core.runtime.precompile "
-                                "--write, with an empty cache)", "kernels": entries}, indent=1)
+    text = json.dumps({"about": "kernels a construction calls from Python, their signatures, "
+                                "compile seconds and the construction's phase when first "
+                                "called (python -m core.runtime.precompile --write, with an "
+                                "empty cache)", "kernels": entries}, indent=1)
     LIST.write_text(text + "\n", encoding="utf-8")
     print(f"{len(entries)} kernels, {sum(e['seconds'] for e in entries):.1f} s, in {LIST}")
 
