@@ -220,7 +220,8 @@ def test_a_base_vertex_whose_shell_the_base_round_thickens_is_put_back(monkeypat
     was (here: one vertex pulled far out, its star's values following it), that vertex goes
     back where it was (with the neighbours whose values it shared, thickened too) and the
     displacements are fitted again around it; the other vertices keep their moves.
-    ``run.notes`` counts the vertices put back per round; held vertices always go back."""
+    ``run.notes`` counts the vertices put back per round; held vertices are fixed in the
+    round itself."""
     from types import SimpleNamespace
 
     import core.construct.fitting as fin
@@ -234,7 +235,7 @@ def test_a_base_vertex_whose_shell_the_base_round_thickens_is_put_back(monkeypat
     pulled, far = 0, int(np.argmin(v @ v[0]))              # far: the opposite pole
     calls = []
 
-    def fake_fit(run, m, samples, base_stiffness=0.0, rounds=2):
+    def fake_fit(run, m, samples, base_stiffness=0.0, rounds=2, fixed_base=None):
         calls.append(base_stiffness)
         if base_stiffness == 0.0:                           # the fit again: values only
             return m
@@ -266,12 +267,20 @@ def test_a_base_vertex_whose_shell_the_base_round_thickens_is_put_back(monkeypat
     out = fin._base_moved(run, mm, None)
     np.testing.assert_allclose(out.base.vertices, mm.base.vertices + 1e-4 * v)
     assert run.notes["base_fit_vertices_put_back"] == [len(back), 0]
-    # a held vertex (its star on the reference, core.construct.held) always goes back
-    monkeypatch.setattr(fin, "fit_rounds", lambda run, m, samples, base_stiffness=0.0, **k: (
-        m.with_base_positions(m.base.vertices + 1e-4 * m.directions) if base_stiffness else m))
+    # a held vertex (its star on the reference, core.construct.held) is fixed in the round
+    seen = []
+
+    def fixed_fit(run, m, samples, base_stiffness=0.0, rounds=2, fixed_base=None):
+        seen.append((base_stiffness, fixed_base))
+        still = np.zeros(m.base.n_vertices, bool) if fixed_base is None else fixed_base
+        step = np.where(still[:, None], 0.0, 1e-4 * m.directions)
+        return m.with_base_positions(m.base.vertices + step) if base_stiffness else m
+
+    monkeypatch.setattr(fin, "fit_rounds", fixed_fit)
     run.held_in_fit = np.zeros(base.n_vertices, bool)
     run.held_in_fit[far] = True
     out = fin._base_moved(run, mm, None)
+    assert len(seen) == 1 and seen[0][1] is run.held_in_fit      # no second fit
     np.testing.assert_array_equal(out.base.vertices[far], mm.base.vertices[far])
     moved = ~run.held_in_fit
     np.testing.assert_allclose(out.base.vertices[moved], (mm.base.vertices + 1e-4 * v)[moved])

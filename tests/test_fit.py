@@ -100,6 +100,21 @@ def test_moving_the_base_too_brings_the_surface_closer(bumpy):
     np.testing.assert_allclose(stiff.displacements, alone.displacements, atol=1e-3 * edge)
 
 
+def test_fixed_base_vertices_stay_exactly_where_they_are(bumpy):
+    """The base round with some base vertices fixed: those keep their positions bit for bit,
+    the others move as before, and the fit is no worse than with every vertex fixed."""
+    ref, baked = bumpy
+    samples = fit_samples(baked, ref)
+    free = fit_micromesh(baked, ref, samples=samples, base_stiffness=1e-3)
+    moved = np.linalg.norm(free.base.vertices - baked.base.vertices, axis=1)
+    fixed = moved > np.median(moved)                  # the half that moves most
+    held = fit_micromesh(baked, ref, samples=samples, base_stiffness=1e-3, fixed_base=fixed)
+    assert np.array_equal(held.base.vertices[fixed], baked.base.vertices[fixed])
+    assert (np.linalg.norm(held.base.vertices - baked.base.vertices, axis=1)[~fixed] > 0).any()
+    alone = baked.with_displacements(fit_displacements(baked, ref, samples=samples))
+    assert surface_errors(held, samples)[0].sum() < surface_errors(alone, samples)[0].sum()
+
+
 @pytest.mark.parametrize("mixed", [False, True])
 def test_the_compiled_systems_are_the_rows_system(bumpy, mixed):
     """The rounds sum their normal equations in compiled passes (per micro-triangle; with the

@@ -101,19 +101,18 @@ _SHELL_GROWTH = 1.1
 
 
 def _base_moved(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
-    """One fit round with the base vertices as unknowns. On parts thinner than the samples'
+    """One fit round with the base vertices as unknowns, but for ``run.held_in_fit``
+    (``core.construct.held``), which stay where they are. On parts thinner than the samples'
     spacing a base vertex can be pulled across to the far side, and its shell with it: a
     vertex whose span (the thickness of its shell, ``core.bounds.reach``) grows past
-    ``_SPAN_GROWTH`` times its span before, plus ``_SPAN_FLOOR`` mean base edges, is put back
-    (so are ``run.held_in_fit``, ``core.construct.held``), and the
-    displacements are fitted again around it: a few such vertices would otherwise make the
-    shell's cap refuse the whole round."""
+    ``_SPAN_GROWTH`` times its span before, plus ``_SPAN_FLOOR`` mean base edges, is put back,
+    and the displacements are fitted again around it: a few such vertices would otherwise
+    make the shell's cap refuse the whole round."""
     with run.timer.phase("fit"):
-        moved = fit_rounds(run, mm, samples, run.s.fit_base_stiffness, rounds=1)
+        moved = fit_rounds(run, mm, samples, run.s.fit_base_stiffness, rounds=1,
+                           fixed_base=run.held_in_fit)
         grown = reach(moved) > _SPAN_GROWTH * reach(mm) + _SPAN_FLOOR * run.h
         run.notes.setdefault("base_fit_vertices_put_back", []).append(int(grown.sum()))
-        if run.held_in_fit is not None:
-            grown |= run.held_in_fit
         if grown.any():
             vertices = moved.base.vertices.copy()
             vertices[grown] = mm.base.vertices[grown]
@@ -188,8 +187,10 @@ def _share(error: np.ndarray) -> np.ndarray:
 
 
 def fit_rounds(run: RunState, mm: MicroMesh, samples, base_stiffness: float = 0.0,
-               rounds: int = 2) -> MicroMesh:
+               rounds: int = 2, fixed_base: np.ndarray | None = None) -> MicroMesh:
     """The least-squares fit with the run's settings (the base vertices held with
-    ``base_stiffness``, fixed at 0); one round suffices from an already fitted ``mm``."""
+    ``base_stiffness``, fixed at 0, ``fixed_base`` fixed); one round suffices from an
+    already fitted ``mm``."""
     return fit_micromesh(mm, run.scene.ref, run.s.fit_smoothness, rounds, samples=samples,
-                         slopes=run.s.fit_slopes, base_stiffness=base_stiffness)
+                         slopes=run.s.fit_slopes, base_stiffness=base_stiffness,
+                         fixed_base=fixed_base)

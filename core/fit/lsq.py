@@ -27,12 +27,14 @@ def fit_displacements(mm: MicroMesh, reference: TriMesh, smoothness: float = 1e-
 
 def fit_micromesh(mm: MicroMesh, reference: TriMesh, smoothness: float = 1e-3,
                   iterations: int = 2, density: float = 2.0, samples=None, slopes: float = 0.1,
-                  base_stiffness: float = 0.0) -> MicroMesh:
+                  base_stiffness: float = 0.0, fixed_base: np.ndarray | None = None
+                  ) -> MicroMesh:
     """``mm`` fitted to ``reference``: its displacements and, with ``base_stiffness`` > 0,
     its base vertices too (directions kept). A base vertex moves where that brings the
     micro-surface closer and its triangles flatter against the samples: sideways onto a
     crease, which one displacement per micro-vertex cannot reach; ``base_stiffness`` holds
-    it (times the sample weight per base vertex times its squared move).
+    it (times the sample weight per base vertex times its squared move); ``fixed_base``
+    (nb,) bool: base vertices that stay exactly where they are.
     """
     if smoothness < 0 or slopes < 0 or base_stiffness < 0 or iterations < 1 \
             or not density > 0:
@@ -44,7 +46,8 @@ def fit_micromesh(mm: MicroMesh, reference: TriMesh, smoothness: float = 1e-3,
     d = mm.displacements.copy()
     offsets = np.zeros((nb, 3))
     for _ in range(iterations):
-        M, b = normal_equations(mm, d, samples, smoothness, slopes, base_stiffness, offsets)
+        M, b = normal_equations(mm, d, samples, smoothness, slopes, base_stiffness, offsets,
+                                fixed=fixed_base if base_stiffness > 0 else None)
         if base_stiffness > 0:
             # 300 CG steps, converged or not: as good as a full solve (counter_cad's
             # micro-mesh: 200 to 2000 steps all 33.34 dB; 2000 did not converge).

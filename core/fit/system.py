@@ -25,15 +25,16 @@ from .triangle_sums import blocks_csr, f64, triangle_sums
 
 def normal_equations(mm: MicroMesh, d: np.ndarray, samples: Samples, smoothness: float,
                      slopes: float, base_stiffness: float = 0.0,
-                     offsets: np.ndarray | None = None, chunk: int = CHUNK, by_rows: bool = False
-                     ) -> tuple[sp.csr_matrix, np.ndarray]:
+                     offsets: np.ndarray | None = None, chunk: int = CHUNK, by_rows: bool = False,
+                     fixed: np.ndarray | None = None) -> tuple[sp.csr_matrix, np.ndarray]:
     """(M, b) of one fit round: the samples matched to their closest points on the
     micro-surface of displacements ``d`` (and base vertices moved by ``offsets`` (nb, 3)),
     then the weighted least-squares system.
 
     Unknowns: the displacements (n,); with ``base_stiffness`` > 0 also increments of the base
     offsets (3 nb, x then y then z), held by ``base_stiffness`` · (weight per base vertex) ·
-    |offsets|². M is (n, n) or (n + 3 nb, n + 3 nb).
+    |offsets|². M is (n, n) or (n + 3 nb, n + 3 nb). ``fixed`` (nb,) bool: base vertices
+    that do not move (their increments' rows and columns are the identity's, b's rows 0).
 
     The system is summed in one compiled pass over the samples: per micro-triangle over the
     displacements alone (:mod:`.triangle_sums`), with the base also per (micro-vertex, base
@@ -68,7 +69,13 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples: Samples, smoothness:
     stiff = np.zeros(size)
     stiff[n:] = k
     b[n:] -= k * offsets.T.reshape(-1)                # holds the offsets, not the increments
-    return sorted_csr(M + R + sp.diags(stiff, format="csr")), b
+    M = M + R + sp.diags(stiff, format="csr")
+    if fixed is not None and fixed.any():
+        still = np.concatenate([np.zeros(n, bool), np.tile(fixed, 3)])
+        keep = sp.diags((~still).astype(np.float64), format="csr")
+        M = keep @ M @ keep + sp.diags(still.astype(np.float64), format="csr")
+        b[still] = 0.0
+    return sorted_csr(M), b
 
 
 # A micro-vertex is unheld where its samples' share of the normal equations' diagonal is below
