@@ -83,7 +83,7 @@ def joint_sums(tri, corners, B, pts, normals, weights, P, D, slopes, tri_face, b
 def joint_system(matches, T, P, D, W, topology, base_faces, slopes: float
                  ) -> tuple[sp.csr_matrix, np.ndarray]:
     """(M, b) over the displacements (n) and the base offsets (3 nb, x then y then z), the
-    system ``system._row_system`` builds from the rows with ``W``; ``matches`` as
+    system ``rows.row_system`` builds from the rows with ``W``; ``matches`` as
     ``system.sample_matches`` yields them."""
     n, nb, m, nf = len(P), W.shape[1], len(T), len(base_faces)
     tri_face = np.ascontiguousarray(topology.triangle_face, dtype=np.int64)

@@ -19,6 +19,7 @@ from ..closest import index_on
 from ..laplacian import uniform_laplacian
 from ..micromesh import MicroMesh
 from .joint_sums import joint_system
+from .rows import row_system
 from .samples import CHUNK, Samples
 from .triangle_sums import blocks_csr, f64, triangle_sums
 
@@ -54,8 +55,8 @@ def normal_equations(mm: MicroMesh, d: np.ndarray, samples: Samples, smoothness:
     matches = sample_matches(P + D * d[:, None], mm.topology, samples, chunk)
     joint = base_stiffness > 0
     if by_rows:
-        M, b = _row_system(matches, P, D, W if joint else None, n + 3 * nb if joint else n,
-                           slopes)
+        M, b = row_system(matches, P, D, W if joint else None, n + 3 * nb if joint else n,
+                          slopes)
     elif joint:
         M, b = joint_system(matches, T, P, D, W, mm.topology, mm.base.faces, slopes)
     else:
@@ -151,7 +152,7 @@ def sample_matches(X: np.ndarray, topology, samples: Samples, chunk: int):
 
 def _displacement_system(matches, T, P, D, slopes):
     """(M, b) over the displacements alone: each micro-triangle's 3 x 3 block, summed over its
-    samples by :func:`triangle_sums`, scattered into M (``_row_system`` without ``W`` gives
+    samples by :func:`triangle_sums`, scattered into M (``rows.row_system`` without ``W`` gives
     the same system from the rows)."""
     n, m = len(P), len(T)
     G = np.zeros((m, 3, 3))
@@ -161,52 +162,3 @@ def _displacement_system(matches, T, P, D, slopes):
         triangle_sums(tri, corners, B, f64(pts), f64(normals), f64(weights), P, D,
                       float(slopes), G, b)
     return blocks_csr(G, T, n), b
-
-
-def _row_system(matches, P, D, W, size, slopes):
-    """(M, b) from the rows themselves: over the displacements and, with ``W``, the base
-    vertices."""
-    n = len(P)
-    M, b = sp.csr_matrix((size, size)), np.zeros(size)
-    for pts, normals, weights, _, corners, B in matches:
-        C, N, t, w = _rows(corners, B, pts, normals, weights, n, slopes)
-        A, rhs = _columns(C, N, t, P, D, W)
-        AtW = A.T.multiply(w[None, :]).tocsr()
-        M = M + AtW @ A
-        b += AtW @ rhs
-    return M, b
-
-
-def _columns(C, N, t, P, D, W):
-    """(A, rhs) of rows ``C`` along normals ``N`` with targets ``t``: the displacements'
-    columns (c_k n·D_k) and, with ``W``, the base vertices' (n_a (C W)), and t − n·(C P)."""
-    coo = C.tocoo()
-    A = sp.csr_matrix((coo.data * (N[coo.row] * D[coo.col]).sum(1), (coo.row, coo.col)),
-                      shape=C.shape)
-    rhs = t - sum(N[:, a] * (C @ P[:, a]) for a in range(3))
-    if W is not None:
-        CW = (C @ W).tocsr()
-        A = sp.hstack([A] + [CW.multiply(N[:, a:a + 1]) for a in range(3)]).tocsr()
-    return A, rhs
-
-
-def _rows(corners, B, pts, normals, weights, n: int, slopes: float):
-    """(C (r, n) coefficients, N (r, 3) normals, t (r,) targets, w (r,) weights) of the point
-    rows of samples matched to micro-triangles ``corners`` at barycentrics ``B`` and, with
-    ``slopes`` > 0, the slope rows (weight ``slopes`` times the sample's)."""
-    s = len(pts)
-    rows, cols, vals = [np.repeat(np.arange(s), 3)], [corners.reshape(-1)], [B.reshape(-1)]
-    N, t, w = [normals], [(normals * pts).sum(1)], [weights]
-    if slopes > 0:
-        for e, (a, b) in enumerate(((0, 1), (1, 2), (2, 0))):
-            rows.append(np.repeat(np.arange((e + 1) * s, (e + 2) * s), 2))
-            cols.append(corners[:, [a, b]].reshape(-1))
-            vals.append(np.tile([-1.0, 1.0], s))
-            N.append(normals)
-            t.append(np.zeros(s))
-            w.append(slopes * weights)
-    r = s * (4 if slopes > 0 else 1)
-    C = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                      shape=(r, n))
-    return C, np.concatenate(N), np.concatenate(t), np.concatenate(w)
-
