@@ -56,14 +56,17 @@ class Compiling:
         root, package = here()
         paths = [p for p in sys.path if p and p != root]
         self._procs, self._logs = [], []
-        for k, part in enumerate(plan(missing, n)):
-            log = Path(self._folder.name) / f"{k}.log"
-            with open(log, "wb") as out:         # the process keeps its own handle
-                self._procs.append(subprocess.Popen(
-                    command(root, package, paths, "core.runtime.precompile", "compile_listed",
-                            *(e["index"] for e in part)),
-                    stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT))
-            self._logs.append(log)
+        try:
+            for k, part in enumerate(plan(missing, n)):
+                self._logs.append(Path(self._folder.name) / f"{k}.log")
+                with open(self._logs[-1], "wb") as out:   # the process keeps its own handle
+                    self._procs.append(subprocess.Popen(
+                        command(root, package, paths, "core.runtime.precompile",
+                                "compile_listed", *(e["index"] for e in part)),
+                        stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT))
+        except BaseException:
+            self.close()
+            raise
 
     def done(self) -> set[int]:
         """The indices of the kernels compiled so far."""
@@ -117,4 +120,10 @@ def start(processes: int | None = None) -> Compiling | None:
     missing = [dict(e, index=i) for i, e in enumerate(precompile.load())
                if not precompile.cached(e)]
     n = min(processes or min(precompile.usable_cores(), 4), len(missing))
-    return Compiling(missing, n) if n > 1 else None
+    if n <= 1:
+        return None
+    try:
+        return Compiling(missing, n)
+    except OSError as e:        # no process could start: the construction compiles as it goes
+        print(f"precompile: no compiling process: {e}", file=sys.stderr)
+        return None
