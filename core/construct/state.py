@@ -63,7 +63,7 @@ class RunState:
     should_stop: Callable[[], bool]
     fixed: np.ndarray | None = None
     held: np.ndarray | None = None     # base vertices the optimiser never moves and
-    held_in_fit: np.ndarray | None = None  # those the fit's base round puts back (construct.held)
+    held_in_fit: np.ndarray | None = None  # those the fit's base round fixes (construct.held)
     ref_tree: object = None
     h: float = 1.0                     # the base's initial mean edge length (unit frame)
     level: int = 0

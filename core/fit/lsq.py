@@ -47,7 +47,7 @@ def fit_micromesh(mm: MicroMesh, reference: TriMesh, smoothness: float = 1e-3,
     offsets = np.zeros((nb, 3))
     for _ in range(iterations):
         M, b = normal_equations(mm, d, samples, smoothness, slopes, base_stiffness, offsets,
-                                fixed=fixed_base if base_stiffness > 0 else None)
+                                fixed=fixed_base)
         if base_stiffness > 0:
             # 300 CG steps, converged or not: as good as a full solve (counter_cad's
             # micro-mesh: 200 to 2000 steps all 33.34 dB; 2000 did not converge).

@@ -1,8 +1,8 @@
 """Silhouette-edge bits per pixel: for each covered pixel, which edges of its face are
 silhouettes in that view (no neighbour across the edge, or a neighbour facing the other
-way). The rasteriser stores them as it goes (``raster``); ``numba_geometry.edge_flags_numba`` makes them
-for a raster that lacks them (one made by the torch backend). The antialiasing reads them
-(``silhouette``)."""
+way). The rasteriser stores them as it goes (``raster``);
+``numba_geometry.edge_flags_numba`` makes them for a raster that lacks them (one made by the
+torch backend). The antialiasing reads them (``silhouette``)."""
 from __future__ import annotations
 
 

@@ -49,8 +49,9 @@ def edge_flags_numba(verts: torch.Tensor, faces: torch.Tensor, mvp: torch.Tensor
     flags = np.zeros(t.shape, dtype=np.uint8)
     if len(faces) and len(t):
         sc, fc = scratch(len(v), len(faces), len(t))
-        parallel_for(project_and_flag, len(sc), v, faces_int32(faces), face_neighbours_int32(faces),
-                     mvp.contiguous().numpy(), t.shape[2], t.shape[1], sc, fc, t, flags, parts=len(sc))
+        parallel_for(project_and_flag, len(sc), v, faces_int32(faces),
+                     face_neighbours_int32(faces), mvp.contiguous().numpy(), t.shape[2],
+                     t.shape[1], sc, fc, t, flags, parts=len(sc))
     return flags
 
 
@@ -86,7 +87,8 @@ class VertexNormals(torch.autograd.Function):
         v = verts.detach().contiguous().numpy()
         f = faces.contiguous().numpy()
         graw = np.empty_like(vn)
-        parallel_for(_vertex_backward, len(vn), gvn.to(verts.dtype).contiguous().numpy(), vn, inv, graw)
+        parallel_for(_vertex_backward, len(vn), gvn.to(verts.dtype).contiguous().numpy(), vn,
+                     inv, graw)
         ptr, corners = _csr(faces, len(v))
         gverts = np.zeros_like(v)
         parallel_for(_verts_backward, len(v), v, f, graw, ptr, corners, gverts)
