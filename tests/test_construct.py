@@ -210,13 +210,13 @@ def test_subdivision_keeps_optimised_displacements(scene):
     import torch
 
     from core.construct.params import Parameters
-    from core.construct.run import _initial_micromesh, _setup
+    from core.construct.start import initial_micromesh, start_run
     from core.construct.subdivision import subdivide
 
     ref, base = scene
     s = small(base_warm_up=False, max_level=2)
-    run = _setup(ref, base, None, s, torch.device("cpu"), None, None)
-    mm = _initial_micromesh(run)                     # level 0, baked
+    run = start_run(ref, base, None, s, torch.device("cpu"))
+    mm = initial_micromesh(run)                     # level 0, baked
     rng = np.random.default_rng(0)
     optimised = mm.with_displacements(mm.displacements + 0.01 * rng.standard_normal(mm.n_vertices))
     params = Parameters(run.base, optimised, s, run.device)
@@ -255,7 +255,7 @@ def test_paper_losses_are_the_papers(scene, monkeypatch):
 
     from core.construct import step as step_module
     from core.construct.params import Parameters
-    from core.construct.run import _initial_micromesh, _setup
+    from core.construct.start import initial_micromesh, start_run
     from core.construct.step import step
     from core.losses import isotropy_loss, shell_volume_loss
 
@@ -266,8 +266,8 @@ def test_paper_losses_are_the_papers(scene, monkeypatch):
     ref, base = scene
     for paper in (True, False):
         s = small(base_warm_up=False, paper_losses=paper, w_sv=10.0, w_iso=1.0, w_range=0.0)
-        run = _setup(ref, base, None, s, torch.device("cpu"), None, None)
-        mm = _initial_micromesh(run)
+        run = start_run(ref, base, None, s, torch.device("cpu"))
+        mm = initial_micromesh(run)
         params = Parameters(run.base, mm, s, run.device)
         cams = run.scene.cams.subset(np.arange(2))
         target = run.scene.images(cams)

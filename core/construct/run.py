@@ -10,6 +10,7 @@ bounds and metrics (:mod:`.finalise`).
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -17,10 +18,8 @@ import torch
 
 from ..cameras import Cameras
 from ..lod import effective_micro_triangles
-from ..losses import mean_edge_length
 from ..runtime.memory import keep_large_allocations, map_large_allocations, release_memory
 from ..mesh import TriMesh
-from ..normalization import unit_sphere_normalization
 from ..micromesh import MicroMesh
 from ..settings import ConstructSettings
 from ..runtime.determinism import deterministic
@@ -29,11 +28,11 @@ from ..runtime.threads import set_threads
 from .estimate import check_fits, estimate
 from .finalise import finalise
 from .frame import (check_inputs, check_reference, device as torch_device, fixed_levels,
-                    oriented_reference, prepare_base, unit_cameras)
+                    oriented_reference, prepare_base)
 from .loop import optimise
 from .params import Parameters
-from .scene import Scene, bake
 from .schedule import Schedule
+from .start import initial_micromesh, start_run
 from .state import RunState
 from .held import held_vertices
 from .kernels import BASE, FIRST_ITERATION, Kernels
@@ -74,42 +73,8 @@ def construct(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
         release_memory()
 
 
-def _setup(reference, base, cameras, s, dev, should_stop, fixed) -> RunState:
-    norm = unit_sphere_normalization(reference.vertices)
-    ref_u = TriMesh(norm.apply(reference.vertices), reference.faces)
-    base_u = TriMesh(norm.apply(base.vertices), base.faces)
-    cams = unit_cameras(cameras, norm, s, s.train_resolution)
-    lod_cams = cams.at_resolution(s.lod_resolution)
-    run = RunState(s, dev, norm, base_u, reference.n_faces, Scene(ref_u, cams, dev, s.antialias, s.shading),
-                   lod_cams, should_stop or (lambda: False), fixed=fixed,
-                   h=mean_edge_length(base_u.vertices, base_u.faces))
-    if s.lod_criterion == "chamfer":
-        from scipy.spatial import cKDTree
-        run.ref_tree = cKDTree(ref_u.vertices)
-    return run
-
-
-def _initial_micromesh(run: RunState) -> MicroMesh:
-    """Projection-baked displacements at the start level (the fixed levels, level 0 of the
-    progressive schedule, or the finest uniform level within the budget)."""
-    s, base = run.s, run.base
-    if run.fixed is not None:
-        # Fixed levels: always start from projection baking (the "re-bake" the artist
-        # asked for), then refine the displacements only.
-        mm = MicroMesh.flat(base, run.fixed)
-        run.level = int(run.fixed.max())
-        return mm.with_displacements(bake(mm, run.scene.ref, run.bake_distance))
-    start = 0 if s.progressive else s.max_level
-    while run.cost is not None and start > 0 and run.cost(np.full(base.n_faces, start)) > run.budget:
-        start -= 1             # no progressive schedule: the finest uniform level in budget
-    run.level = start
-    mm = MicroMesh.flat(base, np.full(base.n_faces, start))
-    if not s.init_bake or (start == 0 and s.base_warm_up):
-        return mm                # zero displacements: the warm-up moves the base alone
-    return mm.with_displacements(bake(mm, run.scene.ref, run.bake_distance))
-
-
-def _construct(reference, base, cameras, settings, progress, should_stop, levels) -> ConstructResult:
+def _construct(reference, base, cameras, settings, progress, should_stop,
+               levels) -> ConstructResult:
     s = settings.validate()
     if base is None:
         check_reference(reference)
@@ -126,66 +91,103 @@ def _construct(reference, base, cameras, settings, progress, should_stop, levels
     # included, but not the waits for them, which must not eat it or distort the ETA.
     with Kernels(progress, should_stop) as kernels:
         t_start = time.perf_counter()
-        if progress is not None:   # loose parts, repeated faces and the winding (1M: seconds)
-            progress(Progress("reference", 0, 1, 0.0, float("nan"), float("nan")))
-        reference, warnings = oriented_reference(reference)
-        kernels.ready(BASE)
-        base, base_report, base_warnings = prepare_base(reference, base, s, progress,
-                                                        should_stop)
-        warnings += base_warnings
+        inputs = _inputs(reference, base, s, kernels, progress, should_stop)
         kernels.ready(FIRST_ITERATION)
-        if progress is not None:   # the cameras, the reference's images, the first values
-            progress(Progress("views", 0, 1, 0.0, float("nan"), float("nan")))
+        _announce(progress, "views")   # the cameras, the reference's images, the first values
         kernels.renderer_ready(dev, s.antialias)
         t_start += kernels.waited
-        fixed = fixed_levels(base, levels) if levels is not None else None
-        torch.manual_seed(s.seed)
-        t_setup = time.perf_counter()
-        run = _setup(reference, base, cameras, s, dev, should_stop, fixed)
-        run.progress = progress
-        if s.hold_exact_base and run.fixed is None:
-            run.held_in_fit, run.held = held_vertices(run.base, run.scene.ref)
-            run.notes["held_vertices"] = {"optimiser": int(run.held.sum()),
-                                          "fit": int(run.held_in_fit.sum())}
+        run = _run_state(inputs, cameras, s, dev, levels, guess, should_stop, progress)
         # The loop leaves time for the fit and the metrics; polishing takes what is left of
         # the time limit (it stops at the deadline), but the time left shown counts it.
-        reserve = guess.phases["fit"] + guess.phases["metrics"]
-        run.finish_estimate_s = reserve + guess.phases["polish"]
-        if cameras is not None:
-            warnings += check_views(run.scene.ref, run.scene.cams, dev)
-        run.timer.times["setup"] = time.perf_counter() - t_setup
-        if base_report is not None:
-            run.timer.times["base"] = base_report["time_s"]
-        run.check_stop()
-        with run.timer.phase("reference_images"):
-            target_all = run.scene.images(run.scene.cams)
-        with run.timer.phase("init"):
-            mm = _initial_micromesh(run)
-            params = Parameters(run.base, mm, s, run.device, frozen_base=run.fixed is not None,
-                                held=run.held)
-        if run.fixed is not None:
-            run.event(iteration=0, fixed_levels=True, micro_triangles=effective_micro_triangles(
-                run.fixed, run.base.face_adjacency))
-        schedule = Schedule(s, t_start, fixed_levels=run.fixed is not None, finish_s=reserve)
-        run.deadline = schedule.deadline
-        it_done = optimise(run, params, schedule, target_all, progress)
-        run.check_stop()
-        with run.timer.phase("finalize"):
-            mm = params.micromesh()
-        # The optimiser's state (its solver, moments, the renderer's last buffers) and the
-        # training images are not needed after the loop: free them before the fit's peak.
-        del params, target_all
+        schedule = Schedule(s, t_start, fixed_levels=run.fixed is not None,
+                            finish_s=guess.phases["fit"] + guess.phases["metrics"])
+        mm, it_done = _optimise(run, schedule, progress)
         map_large_allocations()
         kernels.ready(None)
-        result = finalise(run, mm, reference, base, t_start, it_done, schedule.stopped_early)
-        result.metrics["warnings"] = warnings
-        result.metrics["estimate"] = {"seconds": guess.seconds, "peak_bytes": guess.peak_bytes}
-        result.metrics["peak_memory_bytes"] = peak_resident_bytes()
-        if base_report is not None:
-            result.metrics["base"] = base_report
-        if progress is not None:
-            h, n_it = run.history, s.iterations
-            psnr = result.metrics.get("psnr", h["psnr"][-1] if h["psnr"] else 0.0)
-            progress(Progress("done", n_it, n_it, h["loss"][-1] if h["loss"] else 0.0, psnr,
-                              0.0))
-        return result
+        result = finalise(run, mm, inputs.reference, inputs.base, t_start, it_done,
+                          schedule.stopped_early)
+        return _reported(result, run, inputs, guess, progress)
+
+
+@dataclass
+class _Inputs:
+    """The reference with its winding made consistent, the base (caller's frame), the base
+    builder's report (None for a given base) and the warnings said so far."""
+
+    reference: TriMesh
+    base: TriMesh
+    base_report: dict | None
+    warnings: list[str]
+
+
+def _announce(progress, phase: str) -> None:
+    if progress is not None:
+        progress(Progress(phase, 0, 1, 0.0, float("nan"), float("nan")))
+
+
+def _inputs(reference, base, s, kernels, progress, should_stop) -> _Inputs:
+    """Phases "reference" (loose parts, repeated faces and the winding; seconds on 1M faces)
+    and "base" (built once its kernels are compiled, or the given one compared)."""
+    _announce(progress, "reference")
+    reference, warnings = oriented_reference(reference)
+    kernels.ready(BASE)
+    base, report, base_warnings = prepare_base(reference, base, s, progress, should_stop)
+    return _Inputs(reference, base, report, warnings + base_warnings)
+
+
+def _run_state(inputs, cameras, s, dev, levels, guess, should_stop, progress) -> RunState:
+    """The run in the reference's unit frame: its scene, the artist's levels, the held base
+    vertices and the time its finish needs (the view checks' warnings go to ``inputs``)."""
+    fixed = fixed_levels(inputs.base, levels) if levels is not None else None
+    torch.manual_seed(s.seed)
+    t_setup = time.perf_counter()
+    run = start_run(inputs.reference, inputs.base, cameras, s, dev, should_stop, fixed)
+    run.progress = progress
+    if s.hold_exact_base and fixed is None:
+        run.held_in_fit, run.held = held_vertices(run.base, run.scene.ref)
+        run.notes["held_vertices"] = {"optimiser": int(run.held.sum()),
+                                      "fit": int(run.held_in_fit.sum())}
+    run.finish_estimate_s = sum(guess.phases[k] for k in ("fit", "metrics", "polish"))
+    if cameras is not None:
+        inputs.warnings += check_views(run.scene.ref, run.scene.cams, dev)
+    run.timer.times["setup"] = time.perf_counter() - t_setup
+    if inputs.base_report is not None:
+        run.timer.times["base"] = inputs.base_report["time_s"]
+    run.check_stop()
+    return run
+
+
+def _optimise(run: RunState, schedule: Schedule, progress) -> tuple[MicroMesh, int]:
+    """The reference's images, the first values and the loop: (the micro-mesh, iterations
+    done). The optimiser's state (its solver, moments, the renderer's last buffers) and the
+    training images are freed on return, before the fit's peak."""
+    with run.timer.phase("reference_images"):
+        target_all = run.scene.images(run.scene.cams)
+    with run.timer.phase("init"):
+        mm = initial_micromesh(run)
+        params = Parameters(run.base, mm, run.s, run.device, frozen_base=run.fixed is not None,
+                            held=run.held)
+    if run.fixed is not None:
+        run.event(iteration=0, fixed_levels=True, micro_triangles=effective_micro_triangles(
+            run.fixed, run.base.face_adjacency))
+    run.deadline = schedule.deadline
+    it_done = optimise(run, params, schedule, target_all, progress)
+    run.check_stop()
+    with run.timer.phase("finalize"):
+        return params.micromesh(), it_done
+
+
+def _reported(result: ConstructResult, run: RunState, inputs: _Inputs, guess,
+              progress) -> ConstructResult:
+    """``result`` with the warnings, the estimate, the peak memory and the base's report in
+    its metrics, and the "done" progress."""
+    result.metrics["warnings"] = inputs.warnings
+    result.metrics["estimate"] = {"seconds": guess.seconds, "peak_bytes": guess.peak_bytes}
+    result.metrics["peak_memory_bytes"] = peak_resident_bytes()
+    if inputs.base_report is not None:
+        result.metrics["base"] = inputs.base_report
+    if progress is not None:
+        h, n_it = run.history, run.s.iterations
+        psnr = result.metrics.get("psnr", h["psnr"][-1] if h["psnr"] else 0.0)
+        progress(Progress("done", n_it, n_it, h["loss"][-1] if h["loss"] else 0.0, psnr, 0.0))
+    return result
