@@ -33,6 +33,7 @@ from micromesh.cli.args import BatchError, parse_args  # noqa: E402
 from micromesh.cli.interrupt import Interrupt  # noqa: E402
 from micromesh.cli.one_input import process  # noqa: E402
 from micromesh.cli.usage import DEMO_NAME, check_usage  # noqa: E402
+from micromesh.core.runtime import compiling  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -44,12 +45,17 @@ def main(argv: list[str] | None = None) -> int:
         print(f"batch.py: error: {e}", file=sys.stderr, flush=True)
         return 2
     rows: list = []
+    # A fresh checkout's kernels compile in processes of their own while bpy and torch are
+    # imported and the first input is read (the first construction takes them over).
+    compiling.start_early()
     try:
         run_all(args, settings, jobs, sets, rows)
     except KeyboardInterrupt:
         _print_table(rows, jobs, "interrupted")
         print("batch.py: interrupted", file=sys.stderr, flush=True)
         return 130
+    finally:
+        compiling.close_early()
     _print_table(rows, jobs, "")
     done = sum(r.status == "done" for r in rows)
     print(f"done: {done}/{len(jobs)} in {time.perf_counter() - t_start:.1f} s", flush=True)

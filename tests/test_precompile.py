@@ -11,6 +11,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 COLD_RUN = r"""
@@ -49,6 +51,30 @@ c = compiling.start(processes=2)
 c.wait(should_stop=lambda: True)
 c.close()
 print(len(c.missing), time.perf_counter() - t)
+"""
+
+EARLY = r"""
+import os, sys, time
+sys.path.insert(0, sys.argv[1])
+from core.runtime import compiling
+compiling.start_early()
+early = compiling._early
+taken = compiling.start()                 # what a construction's Kernels does
+t = time.perf_counter()
+while not taken.done() and time.perf_counter() - t < 60:
+    time.sleep(0.05)
+nice = []
+for p in taken._procs:
+    try:
+        nice.append(os.getpriority(os.PRIO_PROCESS, p.pid) - os.getpriority(os.PRIO_PROCESS, 0))
+    except ProcessLookupError:            # that process is already done
+        pass
+taken.close()
+compiling.start_early()                   # none takes these: close_early ends them
+procs = compiling._early._procs
+compiling.close_early()
+print(int(taken is early), int(compiling._early is None), min(nice),
+      int(all(p.poll() is not None for p in procs)))
 """
 
 
@@ -137,6 +163,15 @@ def test_cold_cache_compiles_the_list_in_processes_of_its_own(tmp_path):
     assert "compiling kernels" in r["phases"]
     assert r["listed_compiled_here"] == []
     assert r["cached_after"] == n and r["warm"]
+
+
+@pytest.mark.skipif(not hasattr(os, "getpriority"), reason="process priorities are POSIX's")
+def test_processes_started_early_are_taken_over_or_ended(tmp_path):
+    """``start_early`` (batch.py, before its imports): the next ``start`` takes its processes
+    over, which compile below normal priority; ``close_early`` ends those none took."""
+    taken, cleared, nice, ended = map(int, _child(EARLY, tmp_path).split())
+    assert taken and cleared and ended
+    assert nice >= 10
 
 
 def test_stop_ends_the_compiling_processes(tmp_path):

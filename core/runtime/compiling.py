@@ -111,10 +111,34 @@ class Compiling:
         self._folder.cleanup()
 
 
+_early: Compiling | None = None
+
+
+def start_early() -> None:
+    """Start compiling now, for the next :func:`start` to take over: a command line calls it
+    before its imports and its inputs' reading. :func:`close_early` ends the processes where
+    no construction took them."""
+    global _early
+    if _early is None:
+        _early = start()
+
+
+def close_early() -> None:
+    global _early
+    if _early is not None:
+        _early.close()
+        _early = None
+
+
 def start(processes: int | None = None) -> Compiling | None:
     """Start compiling the listed kernels the cache lacks in ``processes`` processes (default:
-    one per usable core, at most 4); None where there is nothing to do (all cached, one core:
-    the construction then compiles as it goes, or while recording the list)."""
+    one per usable core, at most 4), or hand over those :func:`start_early` started; None
+    where there is nothing to do (all cached, one core: the construction then compiles as it
+    goes, or while recording the list)."""
+    global _early
+    if _early is not None:
+        early, _early = _early, None
+        return early
     if precompile.recording():
         return None
     missing = [dict(e, index=i) for i, e in enumerate(precompile.load())

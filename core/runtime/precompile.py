@@ -83,7 +83,11 @@ def compile_listed(*indices: str) -> None:
     collector is off while it compiles: numba's compiler makes a great many objects, and the
     collector's passes over them cost about a quarter of the time (``docs/results.md``). The
     process ends without Python's teardown, which took 2 s to free those objects one by one;
-    numba has written each kernel to the cache as it was compiled."""
+    numba has written each kernel to the cache as it was compiled. It runs below normal
+    priority: the construction's own work (and its speed probe, ``runtime.speed``) comes first
+    where they share the cores."""
+    if hasattr(os, "nice"):
+        os.nice(10)
     entries = load()
     gc.disable()
     for i in indices:
