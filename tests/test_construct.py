@@ -69,10 +69,12 @@ def test_short_run_beats_staged_baseline(scene, device):
     assert (r.micromesh.levels == 2).all()
     assert [p.phase for p in seen].count("optimize") == 60 and seen[-1].phase == "done"
     # The reference's checks and winding first, then the views; a cold kernel cache (a fresh
-    # checkout, CI) waits for the listed kernels before the base and before the views.
+    # checkout, CI) waits for the listed kernels before the base and before the views, and
+    # for the fit's after the loop where they are not compiled by then, never within it.
     phases = [p.phase for p in seen]
     waits = [k for k, ph in enumerate(phases) if ph == "compiling kernels"]
-    assert all(k < phases.index("views") for k in waits)
+    last_iteration = len(phases) - 1 - phases[::-1].index("optimize")
+    assert all(k < phases.index("views") or k > last_iteration for k in waits)
     seen = [p for p in seen if p.phase != "compiling kernels"]
     assert [p.phase for p in seen[:2]] == ["reference", "views"]
     assert all(p.iteration <= p.total_iterations for p in seen)

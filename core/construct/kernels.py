@@ -25,17 +25,20 @@ class Kernels:
         self.compiling = compiling.start()
         self.waited = 0.0
 
-    def ready(self, phases: Collection[str] | None) -> None:
-        """Wait until the kernels first called in ``phases`` (None: all) are compiled."""
+    def ready(self, phases: Collection[str] | None) -> float:
+        """Wait until the kernels first called in ``phases`` (None: all) are compiled; returns
+        the seconds this call waited."""
         if self.compiling is None:
-            return
+            return 0.0
         report = None if self.progress is None else (
             lambda done, total: self.progress(Progress("compiling kernels", done, total,
                                                        float("nan"), float("nan"),
                                                        float("nan"))))
-        self.waited += self.compiling.wait(phases, report, self.should_stop)
+        waited = self.compiling.wait(phases, report, self.should_stop)
+        self.waited += waited
         if self.should_stop is not None and self.should_stop():
             raise ConstructCancelled("construction cancelled")
+        return waited
 
     def renderer_ready(self, device, antialias: bool) -> None:
         """The renderer's kernels loaded (``render.warm_up``), its time counted as waited."""
