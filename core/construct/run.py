@@ -96,11 +96,12 @@ def _construct(reference, base, cameras, settings, progress, should_stop,
         _announce(progress, "views")   # the cameras, the reference's images, the first values
         kernels.renderer_ready(dev, s.antialias)
         t_start += kernels.waited
-        run = _run_state(inputs, cameras, s, dev, levels, guess, should_stop, progress)
+        run = _run_state(inputs, cameras, s, dev, levels, should_stop, progress)
         # The loop leaves time for the fit and the metrics; polishing takes what is left of
         # the time limit (it stops at the deadline), but the time left shown counts it.
-        schedule = Schedule(s, t_start, fixed_levels=run.fixed is not None,
-                            finish_s=guess.phases["fit"] + guess.phases["metrics"])
+        reserve = guess.phases["fit"] + guess.phases["metrics"]
+        run.finish_estimate_s = reserve + guess.phases["polish"]
+        schedule = Schedule(s, t_start, fixed_levels=run.fixed is not None, finish_s=reserve)
         mm, it_done = _optimise(run, schedule, progress)
         map_large_allocations()
         # The fit's kernels, where the loop ended before they were compiled: the wait moves
@@ -138,9 +139,9 @@ def _inputs(reference, base, s, kernels, progress, should_stop) -> _Inputs:
     return _Inputs(reference, base, report, warnings + base_warnings)
 
 
-def _run_state(inputs, cameras, s, dev, levels, guess, should_stop, progress) -> RunState:
-    """The run in the reference's unit frame: its scene, the artist's levels, the held base
-    vertices and the time its finish needs (the view checks' warnings go to ``inputs``)."""
+def _run_state(inputs, cameras, s, dev, levels, should_stop, progress) -> RunState:
+    """The run in the reference's unit frame: its scene, the artist's levels and the held
+    base vertices (the view checks' warnings go to ``inputs``)."""
     fixed = fixed_levels(inputs.base, levels) if levels is not None else None
     torch.manual_seed(s.seed)
     t_setup = time.perf_counter()
@@ -150,7 +151,6 @@ def _run_state(inputs, cameras, s, dev, levels, guess, should_stop, progress) ->
         run.held_in_fit, run.held = held_vertices(run.base, run.scene.ref)
         run.notes["held_vertices"] = {"optimiser": int(run.held.sum()),
                                       "fit": int(run.held_in_fit.sum())}
-    run.finish_estimate_s = sum(guess.phases[k] for k in ("fit", "metrics", "polish"))
     if cameras is not None:
         inputs.warnings += check_views(run.scene.ref, run.scene.cams, dev)
     run.timer.times["setup"] = time.perf_counter() - t_setup
