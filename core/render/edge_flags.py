@@ -5,7 +5,6 @@ way). The rasteriser stores them as it goes (``raster``);
 torch backend). The antialiasing reads them (``silhouette``)."""
 from __future__ import annotations
 
-
 from ..runtime.borrow import borrow
 from ..runtime.jit import kernel
 from .prefetch import FACE_AHEAD, prefetch

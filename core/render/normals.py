@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 
-
 from ..runtime.jit import kernel
 from .lighting import NORMAL_EPS
 

@@ -77,6 +77,11 @@ def split(entries: list[dict], n: int) -> list[list[dict]]:
     return parts
 
 
+# What a compiling process prints after each kernel, with its index: the caller reads these
+# lines for what is done (asking the cache twice a second slowed the processes by a fifth).
+_DONE = "precompile: compiled"
+
+
 def compile_listed(*indices: str) -> None:
     """Compile the listed kernels at ``indices`` (their positions in the list) in this
     process, then end it; the entry point of each compiling process. Python's cycle
@@ -96,11 +101,6 @@ def compile_listed(*indices: str) -> None:
         print(_DONE, i, flush=True)
     sys.stderr.flush()
     os._exit(0)
-
-
-# What a compiling process prints after each kernel, with its index: the caller reads these
-# lines for what is done (asking the cache twice a second slowed the processes by a fifth).
-_DONE = "precompile: compiled"
 
 
 def done_indices(log: bytes) -> set[int]:
