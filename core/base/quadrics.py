@@ -14,6 +14,9 @@ hold a surface. A crease plane weighs at least ``CREASE_AREA`` times the area of
 two faces (twice the edge length² for an equilateral pair): a short edge between large
 faces, as CAD tessellations make them, then holds its crease as firmly as the faces hold
 their planes, where its length² alone let the collapses cut across the crease.
+A crease is an edge sharper than the surface around it (:func:`crease_edges`): on a
+coarsely tessellated curved surface, such as a thin tube of a few facets, every edge is
+sharp, and holding them all kept the tessellation's facets in the base.
 """
 from __future__ import annotations
 
@@ -24,6 +27,8 @@ from ..mesh import TriMesh
 # Two equilateral triangles on an edge of length l have area √3/2 · l²: this weighs them
 # 2 l² (the factor as measured in docs/results.md).
 CREASE_AREA = 4.0 / np.sqrt(3.0)
+# A crease's faces' other edges, creases aside, must be flatter than this (docs/results.md).
+CREASE_ISOLATION_DEG = 35.0
 
 
 def plane_quadrics(normals: np.ndarray, points: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -36,8 +41,32 @@ def plane_quadrics(normals: np.ndarray, points: np.ndarray, weights: np.ndarray)
                                   c * c, c * d, d * d], axis=1)
 
 
+def crease_edges(mesh: TriMesh, feature_angle_deg: float = 50.0,
+                 isolation_deg: float | None = CREASE_ISOLATION_DEG) -> np.ndarray:
+    """Indices into ``mesh.edges`` of the creases: manifold edges whose faces meet at more
+    than ``feature_angle_deg`` while every other edge of those two faces that is not itself
+    such an edge bends by less than ``isolation_deg`` (None: no such condition). A box's
+    edges, a chamfer's and a thin plate's rims qualify; the facets of a coarse tube or of a
+    coarse sphere, whose other edges bend nearly as much, do not."""
+    ef = mesh.edge_faces
+    man = np.flatnonzero(mesh.edge_face_count == 2)
+    fn = mesh.face_normals
+    bend = np.zeros(len(mesh.edges))
+    cos = np.clip((fn[ef[man, 0]] * fn[ef[man, 1]]).sum(1), -1.0, 1.0)
+    bend[man] = np.degrees(np.arccos(cos))
+    sharp = man[bend[man] > feature_angle_deg]
+    if isolation_deg is None or len(sharp) == 0:
+        return sharp
+    others = bend.copy()
+    others[sharp] = 0.0
+    around = others[mesh.face_edges].max(1)          # per face, its sharpest non-crease edge
+    return sharp[np.maximum(around[ef[sharp, 0]], around[ef[sharp, 1]]) < isolation_deg]
+
+
 def vertex_quadrics(mesh: TriMesh, boundary_weight: float = 4.0, crease_weight: float = 1.0,
-                    feature_angle_deg: float = 50.0) -> tuple[np.ndarray, np.ndarray]:
+                    feature_angle_deg: float = 50.0,
+                    isolation_deg: float | None = CREASE_ISOLATION_DEG
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """Per-vertex quadrics (n, 10) and weights (n,) (see the module docstring)."""
     V, F = mesh.vertices, mesh.faces
     nv = len(V)
@@ -63,10 +92,8 @@ def vertex_quadrics(mesh: TriMesh, boundary_weight: float = 4.0, crease_weight: 
     if boundary_weight > 0 and len(bnd):
         pieces.append(_edge_planes(e[bnd], fn[ef[bnd, 0]], a[bnd], boundary_weight * length2[bnd]))
         where.append(bnd)
-    man = np.flatnonzero(cnt == 2)
-    if crease_weight > 0 and len(man):
-        n0, n1 = fn[ef[man, 0]], fn[ef[man, 1]]
-        sharp = man[(n0 * n1).sum(1) < np.cos(np.radians(feature_angle_deg))]
+    sharp = crease_edges(mesh, feature_angle_deg, isolation_deg) if crease_weight > 0 else []
+    if len(sharp):
         hold = np.maximum(length2[sharp], CREASE_AREA * area[ef[sharp]].sum(1))
         for side in (0, 1):
             pieces.append(_edge_planes(e[sharp], fn[ef[sharp, side]], a[sharp],
