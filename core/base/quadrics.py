@@ -92,7 +92,8 @@ def vertex_quadrics(mesh: TriMesh, boundary_weight: float = 4.0, crease_weight: 
     if boundary_weight > 0 and len(bnd):
         pieces.append(_edge_planes(e[bnd], fn[ef[bnd, 0]], a[bnd], boundary_weight * length2[bnd]))
         where.append(bnd)
-    sharp = crease_edges(mesh, feature_angle_deg, isolation_deg) if crease_weight > 0 else []
+    sharp = (crease_edges(mesh, feature_angle_deg, isolation_deg) if crease_weight > 0
+             else np.empty(0, np.int64))
     if len(sharp):
         hold = np.maximum(length2[sharp], CREASE_AREA * area[ef[sharp]].sum(1))
         for side in (0, 1):
