@@ -46,8 +46,8 @@ def crease_edges(mesh: TriMesh, feature_angle_deg: float = 50.0,
     """Indices into ``mesh.edges`` of the creases: manifold edges whose faces meet at more
     than ``feature_angle_deg`` while every other edge of those two faces that is not itself
     such an edge bends by less than ``isolation_deg`` (None: no such condition). A box's
-    edges, a chamfer's and a thin plate's rims qualify; the facets of a coarse tube or of a
-    coarse sphere, whose other edges bend nearly as much, do not."""
+    edges and a thin plate's rims qualify; the facets of a coarse tube or of a coarse
+    sphere, whose other edges bend nearly as much, do not."""
     ef = mesh.edge_faces
     man = np.flatnonzero(mesh.edge_face_count == 2)
     fn = mesh.face_normals
