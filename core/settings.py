@@ -46,6 +46,9 @@ class ConstructSettings:
     base_faces: int = 0              # target face count (> 0: instead of the ratio)
     base_max_error: float = 1e-3     # RMS distance bound / bbox diagonal (0: none)
     base_min_quality: float = 0.4    # floor on 2r/R of new base triangles
+    base_refine: float = 8.0         # then edges split where a face holds more than this
+                                     # many times the mean face's (furthest reference
+                                     # vertex x area; core.base.refine; 0: none)
 
     # adaptive level of detail and the storage budget (the first of the three that is > 0)
     lod: str = "in_optim"            # "in_optim" (Alg. 1), "post" (Alg. 2), "uniform"
@@ -54,8 +57,9 @@ class ConstructSettings:
     tau_post: float = 0.03
     budget_bytes: int = 0            # bytes (11-bit packed .bary + glTF buffers, core.metrics)
     budget_micro_triangles: int = 0  # micro-triangles
-    budget_ratio: float = 2.0        # micro-triangles per input face, counted on the base as
-                                     # micromesh-tools counts its "microexpansion 2"
+    budget_ratio: float = 2.0        # the storage micromesh-tools' "microexpansion 2" (micro-
+                                     # triangles per input face) takes on the base, by its
+                                     # formula (core.construct.state.budget_cost)
                                      # (core.lod.expansion); 0 with the others 0: no budget
 
     # parameters / optimiser
@@ -129,7 +133,8 @@ class ConstructSettings:
     def budget(self) -> tuple[str, float]:
         """The storage budget as ("bytes" | "micro_triangles" | "expansion", amount), or
         ("", 0): none. "expansion": micro-triangles per input face, which the base turns
-        into a count (``core.lod.expansion``)."""
+        into the bytes micromesh-tools' uniform tessellation would take (``core.lod.expansion``,
+        ``core.construct.state.budget_cost``)."""
         if self.budget_bytes > 0:
             return "bytes", float(self.budget_bytes)
         if self.budget_micro_triangles > 0:
@@ -148,8 +153,8 @@ class ConstructSettings:
 
 
 PRESETS: dict[str, dict] = {
-    # Every preset spends 2 micro-triangles per input face as micromesh-tools' microexpansion
-    # 2 counts them on the base (budget_ratio; "paper" too, which the paper ran without a
+    # Every preset spends the storage micromesh-tools' microexpansion 2 would take on the
+    # base (budget_ratio; "paper" too, which the paper ran without a
     # budget: at equal storage the rows compare); every one but
     # "paper" ends with the least-squares fit and trains on flat-shaded renders;
     # docs/results.md has the measurements behind lr_disp 1e-4 and w_iso 0.1 (larger steps

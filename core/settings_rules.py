@@ -20,6 +20,7 @@ RANGES: dict[str, tuple[float, float, bool, bool]] = {
     "base_faces": (0, INF, True, False),
     "base_max_error": (0, 1, True, False),
     "base_min_quality": (0, 1, True, False),
+    "base_refine": (0, 1e6, True, False),
     "tau_in": (0, 1e3, True, False),
     "tau_post": (0, 1e3, True, False),
     "budget_bytes": (0, INF, True, False),

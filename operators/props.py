@@ -50,8 +50,8 @@ class MICROMESH_PG_settings(bpy.types.PropertyGroup):
     base_min_quality: FloatProperty(name="Min Quality", default=0.4, min=0.0, max=0.99,
                                     description="Floor on the shape (2r/R) of new base triangles")
     budget_mode: EnumProperty(name="Budget", default="RATIO", items=[
-        ("RATIO", "× Input", "Micro-triangles per source triangle, counted on the base as "
-                             "micromesh-tools' microexpansion counts them"),
+        ("RATIO", "× Input", "The storage micromesh-tools' microexpansion (micro-triangles "
+                             "per source triangle) would take on the base"),
         ("TRIANGLES", "Micro-Triangles", "A micro-triangle count"),
         ("BYTES", "Bytes", "Storage of the .bary + glTF buffers"),
         ("NONE", "None", "No budget: the LOD's gain threshold alone decides")])

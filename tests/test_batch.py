@@ -10,7 +10,8 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from core.lod.expansion import expansion_micro_triangles  # noqa: E402
+from core.lod.expansion import expansion_levels  # noqa: E402
+from core.metrics import mmt_formula_bytes  # noqa: E402
 from core.mesh import TriMesh  # noqa: E402
 from test_manifest import ROOT  # noqa: E402
 
@@ -178,8 +179,8 @@ def test_defaults_build_a_faithful_base_within_the_budget(inputs, tmp_path):
     m = json.loads((out / "ring.metrics.json").read_text())["metrics"]
     assert m["base"]["topology_base"] == m["base"]["topology_input"]
     assert m["base"]["topology_base"]["genus"] == 1 and m["warnings"] == []
-    budget = m["budget"]["micro_triangles"]
-    assert 0.75 * budget <= m["micro_triangles"] <= budget
+    budget = m["budget"]["formula_bytes"]
+    assert 0.75 * budget <= m["bytes_mmt"] <= budget
     assert "-> base" in r.stdout
     bpy.ops.wm.open_mainfile(filepath=str(out / "ring.blend"))
     base = bpy.data.objects["ring_base"]
@@ -187,10 +188,10 @@ def test_defaults_build_a_faithful_base_within_the_budget(inputs, tmp_path):
     v = np.array([x.co[:] for x in base.data.vertices])
     f = np.array([p.vertices[:] for p in base.data.polygons])
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    # two per input face, counted on the base as micromesh-tools' microexpansion 2 counts
+    # the bytes micromesh-tools' microexpansion 2 would take on the base, by its formula
     # (on the base as built: the one in the file has moved a little since)
-    assert budget == pytest.approx(
-        expansion_micro_triangles(TriMesh(v, f), m["reference_faces"], 2.0), rel=0.02)
+    levels = expansion_levels(TriMesh(v, f), m["reference_faces"], 2.0)
+    assert budget == pytest.approx(mmt_formula_bytes(levels, len(v)), rel=0.02)
 
 
 QUICK = ("--method", "projection", "--level", "1", "--target-faces", "40", "--base-error", "0")

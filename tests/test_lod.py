@@ -143,6 +143,28 @@ def test_exchange_to_budget_moves_triangles_to_where_they_help():
     assert np.array_equal(over, lv)
 
 
+def test_exchange_to_budget_pairs_ups_and_downs_in_the_budgets_own_unit():
+    """In bytes (micromesh-tools' formula) a level up from 2 costs 40 bytes and a level down
+    saves 12: the exchange pays for each up with as many downs as that takes."""
+    from core.lod import exchange_to_budget
+    from core.metrics import mmt_formula_bytes
+    m = _grid()
+    n = m.n_faces
+
+    def cost(lv):
+        return mmt_formula_bytes(lv, m.n_vertices)
+
+    lv = np.full(n, 2)
+    budget = cost(lv)
+    e_prev, e_now = np.full(n, 1.0), np.full(n, 0.99)
+    hot = np.array([10, 11, 40, 41])
+    e_prev[hot], e_now[hot] = 10.0, 4.0
+    out = exchange_to_budget(lv, 2, e_prev, e_now, m.face_adjacency, cost, budget, 1)
+    assert cost(out) <= budget and is_balanced(m, out)
+    assert (out[hot] == 3).all()
+    assert (out == 1).sum() >= 3 * len(hot)           # 40 / 12 bytes: at least 3 downs each
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_effective_count_is_the_tessellations(seed):
     """The budget counts the micro-triangles the crack-free tessellation really has."""

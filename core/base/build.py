@@ -24,6 +24,7 @@ from ..normalization import unit_sphere_normalization
 from ..metrics import isotropy
 from ..settings import ConstructSettings
 from .decimate import decimate
+from .refine import refine as refined
 from .topology import differences, topology
 
 
@@ -68,7 +69,7 @@ def welded(mesh: TriMesh) -> TriMesh:
 
 
 def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
-               max_error: float = 1e-3, min_quality: float = 0.4,
+               max_error: float = 1e-3, min_quality: float = 0.4, refine: float = 0.0,
                progress: Callable[[float], None] | None = None,
                should_stop: Callable[[], bool] | None = None) -> BaseMesh:
     """Decimate ``reference`` into a base mesh that keeps its topology.
@@ -76,6 +77,9 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
     ``faces`` / ``ratio``: the target (see :func:`target_faces`). ``max_error``: bound on the
     RMS distance of merged vertices to the original planes, relative to the reference's
     bounding-box diagonal (0: none). ``min_quality``: floor on 2r/R of new triangles.
+    ``refine``: then edges split where a face's furthest reference vertex × its area is more
+    than this many times the mean face's (:func:`core.base.refine.refine`; 0: none; not with
+    a face count asked for).
     ``progress(fraction)``; ``should_stop()`` cancels (``DecimateCancelled``).
 
     The report: ``target_faces``, ``faces``, ``stopped`` ("target" or "limit"), ``flips``,
@@ -88,6 +92,8 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
         raise BaseError("max_error must be a finite number >= 0 (0: no bound)")
     if not 0 <= min_quality < 1:
         raise BaseError("min_quality must be within [0, 1)")
+    if not np.isfinite(refine) or refine < 0:
+        raise BaseError("refine must be a finite number >= 0 (0: none)")
     target = target_faces(reference.n_faces, ratio, faces)
     norm = unit_sphere_normalization(reference.vertices)
     unit = welded(TriMesh(norm.apply(reference.vertices).astype(np.float32), reference.faces))
@@ -101,6 +107,10 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
     dec = decimate(unit, target, max_error=max_error * diag if max_error > 0 else np.inf,
                    min_quality=min_quality, progress=report, should_stop=should_stop)
     base_unit = TriMesh(dec.vertices, dec.faces)
+    decimated_faces = base_unit.n_faces
+    splits = 0
+    if refine > 0 and faces == 0:
+        base_unit, splits = refined(base_unit, unit, refine)
     _, _, dist = ClosestPointIndex(base_unit.vertices, base_unit.faces).query(unit.vertices)
     used = np.zeros(unit.n_vertices, bool)
     used[unit.faces.reshape(-1)] = True
@@ -108,13 +118,14 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
     d = dist[used] / diag
     topo_in, topo_base = topology(unit), topology(base_unit)
     notes = []
-    if base_unit.n_faces > target and target > 1:
-        notes.append(f"the base stopped at {base_unit.n_faces} faces instead of {target}: "
+    if decimated_faces > target and target > 1:
+        notes.append(f"the base stopped at {decimated_faces} faces instead of {target}: "
                      "no further collapse keeps the error bound, the topology and the "
                      "triangle shapes")
     rep = {"target_faces": target if target > 1 else None, "faces": base_unit.n_faces,
            "vertices": base_unit.n_vertices, "stopped": dec.stopped,
            "collapses": dec.collapses, "rejected": dec.rejected, "flips": dec.flips,
+           "splits": splits,
            "max_error": max_error, "min_quality": min_quality,
            "error_mean": float((d * w).sum() / max(w.sum(), 1e-300)),
            "error_max": float(d.max()), "isotropy": isotropy(base_unit.vertices, base_unit.faces),
@@ -130,4 +141,5 @@ def base_for(reference: TriMesh, s: ConstructSettings,
     """:func:`build_base` with the targets of construction settings (``base_*``)."""
     return build_base(reference, ratio=s.base_ratio, faces=s.base_faces,
                       max_error=s.base_max_error, min_quality=s.base_min_quality,
+                      refine=s.base_refine,
                       progress=progress, should_stop=should_stop)

@@ -10,10 +10,10 @@ import numpy as np
 
 from ..cameras import Cameras
 from ..lod import effective_micro_triangles
-from ..lod.expansion import expansion_micro_triangles
+from ..lod.expansion import expansion_levels
 from ..mesh import TriMesh
 from ..normalization import Normalization
-from ..metrics import PhaseTimer, storage_bytes
+from ..metrics import PhaseTimer, mmt_formula_bytes, storage_bytes
 from ..settings import ConstructSettings
 from .scene import Scene
 from .types import ConstructCancelled, Progress
@@ -24,16 +24,20 @@ FINISH_PHASES = ("fit", "residual_lod", "base_fit", "direction_fit", "bounds", "
 
 
 def budget_cost(s: ConstructSettings, base: TriMesh, reference_faces: int):
-    """(cost(levels), budget, its unit: "bytes" or "micro_triangles") of the LOD budget, or
-    (None, 0, ""). Micro-triangles are counted as the result has them (after the crack-free
-    edge decimation), as the metrics report them; a budget per input face is what
-    micromesh-tools' uniform tessellation would give this base (``core.lod.expansion``)."""
+    """(cost(levels), budget, its unit: "bytes", "formula_bytes" or "micro_triangles") of the
+    LOD budget, or (None, 0, ""). Micro-triangles are counted as the result has them (after
+    the crack-free edge decimation), as the metrics report them. A budget per input face is
+    the storage micromesh-tools' uniform tessellation at that microexpansion would take on
+    this base, counted by its own formula (``core.lod.expansion``, ``metrics.mmt_formula_bytes``):
+    a level costs more bytes per micro-triangle the lower it is, so adaptive levels within
+    its micro-triangle count would take more storage than it does."""
     kind, amount = s.budget()
     if kind == "bytes":
         return (lambda lv: storage_bytes(lv, base.n_vertices)["total"]), amount, kind
     if kind == "expansion":
-        kind, amount = "micro_triangles", float(expansion_micro_triangles(
-            base, reference_faces, amount))
+        nv = base.n_vertices
+        budget = mmt_formula_bytes(expansion_levels(base, reference_faces, amount), nv)
+        return (lambda lv: mmt_formula_bytes(lv, nv)), float(budget), "formula_bytes"
     if kind == "micro_triangles":
         adjacency = base.face_adjacency
         return (lambda lv: effective_micro_triangles(lv, adjacency)), amount, kind

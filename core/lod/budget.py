@@ -54,7 +54,7 @@ def exchange_to_budget(levels: np.ndarray, level: int, err_prev: np.ndarray, err
     up_val = e1 * np.clip(relative_gain(e0, e1), 0, None)
     down_val = np.clip(e0 - e1, 0, None)
     ups, downs = _candidates(lv, level, adj, up_val, down_val, min_level)
-    trade = _Trade(adj, len(lv), budget - cost(lv), 3 * 4 ** level, 3 * 4 ** (level - 1))
+    trade = _Trade(adj, len(lv), budget - cost(lv), *_step_costs(lv, level, cost))
     trade.pair(ups, downs, up_val, down_val)
     new = lv.copy()
     new[trade.downs] = level - 1
@@ -65,6 +65,20 @@ def exchange_to_budget(levels: np.ndarray, level: int, err_prev: np.ndarray, err
         if cost(new) > budget:
             return lv
     return new
+
+
+def _step_costs(lv: np.ndarray, level: int, cost) -> tuple[float, float]:
+    """What one face at ``level`` costs going up a level, and saves going down, in the
+    budget's unit (micro-triangles or bytes): measured on a face at that level."""
+    at = np.flatnonzero(lv == level)
+    if len(at) == 0:
+        return 3.0 * 4 ** level, 3.0 * 4 ** (level - 1)
+    now, trial = cost(lv), lv.copy()
+    trial[at[0]] = level + 1
+    up = cost(trial) - now
+    trial[at[0]] = level - 1
+    down = now - cost(trial)
+    return max(float(up), 1e-9), max(float(down), 1e-9)
 
 
 def _candidates(lv, level, adj, up_val, down_val, min_level):
