@@ -28,9 +28,10 @@ def budget_cost(s: ConstructSettings, base: TriMesh, reference_faces: int):
     LOD budget, or (None, 0, ""). Micro-triangles are counted as the result has them (after
     the crack-free edge decimation), as the metrics report them. A budget per input face is
     the storage micromesh-tools' uniform tessellation at that microexpansion would take on
-    this base, counted by its own formula (``core.lod.expansion``, ``metrics.mmt_formula_bytes``):
-    a level costs more bytes per micro-triangle the lower it is, so adaptive levels within
-    its micro-triangle count would take more storage than it does."""
+    this base, counted by its own formula (``core.lod.expansion``,
+    ``metrics.mmt_formula_bytes``): a level costs more bytes per micro-triangle the lower it
+    is, so adaptive levels within its micro-triangle count would take more storage than it
+    does."""
     kind, amount = s.budget()
     if kind == "bytes":
         return (lambda lv: storage_bytes(lv, base.n_vertices)["total"]), amount, kind

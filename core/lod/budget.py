@@ -1,4 +1,4 @@
-"""Levels within a budget of micro-triangles (ours): cut the weakest subdivisions, exchange
+"""Levels within a budget (micro-triangles or bytes; ours): cut the weakest subdivisions, exchange
 ups for roll-backs where the image error says so, roll back the least useful faces."""
 from __future__ import annotations
 

@@ -7,9 +7,10 @@ L = (log2 e + log2(input faces / base faces)) / 2, gives each base face the near
 level to L + log4(its area / the mean area) (0 at least), and then raises levels until
 neighbours differ by at most one. Rounding per face and raising make more micro-triangles
 than e × input faces: 2.0-2.47 times the input's faces at e = 2 on the shared meshes
-(``docs/results.md``). A budget of e "per input face" is that count on the base at hand, so
+(``docs/results.md``). A budget of e "per input face" is the storage those levels take on
+the base at hand, by micromesh-tools' own formula (``core.construct.state.budget_cost``), so
 that the default spends what the field's default spends on the same base; adaptive LOD then
-places those micro-triangles by visual gain.
+places it by visual gain.
 """
 from __future__ import annotations
 
