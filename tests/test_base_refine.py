@@ -11,12 +11,7 @@ from core.closest import ClosestPointIndex
 from core.mesh import TriMesh
 from core.primitives import holed_plate, icosphere, noisy_sphere, torus
 
-
-def directed_edges_once(mesh: TriMesh) -> bool:
-    """Every directed edge is used by one face at most (consistent winding, manifold)."""
-    F = mesh.faces
-    d = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    return len(np.unique(d, axis=0)) == len(d)
+from test_microtopology import directed_edge_check
 
 
 def bumped_plate(n=24, height=0.3):
@@ -41,7 +36,7 @@ def test_splits_keep_topology_and_winding_and_land_on_the_reference(shape):
     assert splits > 0
     assert out.n_faces == base.n_faces + 2 * splits <= base.n_faces * (1 + MAX_EXTRA) + 2
     assert topology(out).as_dict() == topology(base).as_dict()
-    assert directed_edges_once(out)
+    assert directed_edge_check(out.faces)[1] == 0          # manifold, consistently wound
     new = out.vertices[base.n_vertices:]
     _, _, d = ClosestPointIndex(ref.vertices, ref.faces).query(new)
     assert np.median(d) < 1e-9 * ref.bbox_diagonal + 1e-12

@@ -41,18 +41,17 @@ def refine(base: TriMesh, reference: TriMesh, outlier: float) -> tuple[TriMesh, 
     3 % of the faces, 57-69 % of the score; ``docs/results.md``)."""
     cap = base.n_faces + int(MAX_EXTRA * base.n_faces)
     ref_index = ClosestPointIndex(reference.vertices, reference.faces)
-    mesh, splits, limit = base, 0, None
+    mesh, splits = base, 0
+    score = thickness(mesh, reference.vertices) * mesh.face_areas
+    limit = outlier * score.mean()
     while mesh.n_faces + 2 <= cap:
-        score = thickness(mesh, reference.vertices) * mesh.face_areas
-        if limit is None:
-            limit = outlier * score.mean()
-        score = np.where(score > limit, score, 0.0)
         most = max(1, min((cap - mesh.n_faces) // 2, int(ROUND_SHARE * mesh.n_faces)))
-        edges = _independent_edges(mesh, score, most)
+        edges = _independent_edges(mesh, np.where(score > limit, score, 0.0), most)
         if len(edges) == 0:
             break
         mesh = _split(mesh, edges, ref_index)
         splits += len(edges)
+        score = thickness(mesh, reference.vertices) * mesh.face_areas
     return mesh, splits
 
 

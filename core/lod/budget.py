@@ -1,5 +1,5 @@
-"""Levels within a budget (micro-triangles or bytes; ours): cut the weakest subdivisions, exchange
-ups for roll-backs where the image error says so, roll back the least useful faces."""
+"""Levels within a budget (micro-triangles or bytes; ours): cut the weakest subdivisions,
+exchange ups for roll-backs where the image error says so, roll back the least useful faces."""
 from __future__ import annotations
 
 from typing import Callable
