@@ -15,6 +15,7 @@ import numpy as np
 
 from .bvh import build_bvh, refit_bvh
 from .bvh_query import query_nearest
+from .point_triangle import degenerate
 from .checks import as_points, per_point_distance
 from .mesh import TriMesh
 from .runtime.threads import parallel_for
@@ -50,10 +51,7 @@ class ClosestPointIndex:
         self._A = np.ascontiguousarray(t[:, 0])
         self._B = np.ascontiguousarray(t[:, 1])
         self._C = np.ascontiguousarray(t[:, 2])
-        ab, ac = self._B - self._A, self._C - self._A
-        n2 = np.einsum("ij,ij->i", *(2 * [np.cross(ab, ac)]))
-        scale = np.einsum("ij,ij->i", ab, ab) * np.einsum("ij,ij->i", ac, ac)
-        self._flat = n2 <= 1e-20 * scale  # sin² of the angle at a: collinear or repeated corners
+        self._flat = degenerate(self._A, self._B, self._C)
 
     @property
     def tree(self) -> tuple[np.ndarray, ...]:

@@ -1,9 +1,38 @@
 """The exact closest point on one triangle (Ericson's Voronoi-region method, float64), and on
 a segment for degenerate (zero-area) triangles: compiled, called per point and triangle by
-the closest-point traversal (:mod:`core.closest`)."""
+the closest-point traversal (:mod:`core.closest`), and per (point, triangle) pair by
+:func:`pair_distances`."""
 from __future__ import annotations
 
+import numpy as np
+
 from .runtime.jit import kernel
+
+
+def degenerate(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """(m,) which triangles (corners (m, 3) each) are collinear or repeat a corner: the sine²
+    of the angle at A under 1e-20 (:func:`closest_on_triangle` treats those as segments)."""
+    ab, ac = B - A, C - A
+    n2 = np.einsum("ij,ij->i", *(2 * [np.cross(ab, ac)]))
+    scale = np.einsum("ij,ij->i", ab, ab) * np.einsum("ij,ij->i", ac, ac)
+    return n2 <= 1e-20 * scale
+
+
+def pair_distances(points: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.ndarray
+                   ) -> np.ndarray:
+    """(n,) the distance from each of ``points`` (n, 3) to its own triangle (A, B, C: (n, 3)
+    corners each), exact (not the nearest of all the triangles: :mod:`core.closest`)."""
+    A, B, C = (np.ascontiguousarray(x, dtype=np.float64) for x in (A, B, C))
+    out = np.empty(len(A))
+    _pair_distances(np.ascontiguousarray(points, dtype=np.float64), A, B, C,
+                    degenerate(A, B, C), out)
+    return out
+
+
+@kernel(cache=True)
+def _pair_distances(P, A, B, C, flat, out):  # pragma: no cover - compiled
+    for k in range(P.shape[0]):
+        out[k] = np.sqrt(closest_on_triangle(P[k, 0], P[k, 1], P[k, 2], A, B, C, flat, k)[3])
 
 
 @kernel(cache=True)

@@ -25,6 +25,7 @@ from ..metrics import isotropy
 from ..settings import ConstructSettings
 from .decimate import decimate
 from .refine import refine as refined
+from .surface_flips import surface_flips
 from .topology import differences, topology
 
 
@@ -77,12 +78,15 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
     ``faces`` / ``ratio``: the target (see :func:`target_faces`). ``max_error``: bound on the
     RMS distance of merged vertices to the original planes, relative to the reference's
     bounding-box diagonal (0: none). ``min_quality``: floor on 2r/R of new triangles.
+    After the collapses, edges are flipped where the other diagonal lies closer to the
+    reference (:func:`core.base.surface_flips.surface_flips`).
     ``refine``: then edges split where a face's furthest reference vertex × its area is more
     than this many times the mean face's (:func:`core.base.refine.refine`; 0: none; not with
     a face count asked for).
     ``progress(fraction)``; ``should_stop()`` cancels (``DecimateCancelled``).
 
-    The report: ``target_faces``, ``faces``, ``stopped`` ("target" or "limit"), ``flips``,
+    The report: ``target_faces``, ``faces``, ``stopped`` ("target" or "limit"), ``flips``
+    (the decimation's, of slivers), ``surface_flips``, ``splits``,
     ``error_mean`` / ``error_max`` (reference vertices to the base, over the diagonal; mean
     weighted by vertex area), ``isotropy``, ``topology_input`` / ``topology_base``,
     ``warnings`` (sentences), ``time_s``.
@@ -108,6 +112,7 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
                    min_quality=min_quality, progress=report, should_stop=should_stop)
     base_unit = TriMesh(dec.vertices, dec.faces)
     decimated_faces = base_unit.n_faces
+    base_unit, toward = surface_flips(base_unit, unit, min_quality)
     splits = 0
     if refine > 0 and faces == 0:
         base_unit, splits = refined(base_unit, unit, refine)
@@ -125,7 +130,7 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
     rep = {"target_faces": target if target > 1 else None, "faces": base_unit.n_faces,
            "vertices": base_unit.n_vertices, "stopped": dec.stopped,
            "collapses": dec.collapses, "rejected": dec.rejected, "flips": dec.flips,
-           "splits": splits,
+           "surface_flips": toward, "splits": splits,
            "max_error": max_error, "min_quality": min_quality,
            "error_mean": float((d * w).sum() / max(w.sum(), 1e-300)),
            "error_max": float(d.max()), "isotropy": isotropy(base_unit.vertices, base_unit.faces),
