@@ -52,17 +52,15 @@ def test_the_default_budget_is_the_expansion_on_the_base():
 
 
 def test_the_expansion_budget_is_micromesh_tools_storage_on_the_base():
-    """Counted in bytes by micromesh-tools' own formula (its ``out_size``): 99 % of what the
-    levels its uniform tessellation would give the base take, and what any levels cost the
-    same way."""
-    from core.construct.state import EXPANSION_SHARE, budget_cost
+    """Counted in bytes by micromesh-tools' own formula (its ``out_size``): the levels its
+    uniform tessellation would give the base, and what any levels cost the same way."""
+    from core.construct.state import budget_cost
     from core.metrics import mmt_formula_bytes
     base = TriMesh(*icosphere(2))
     cost, budget, unit = budget_cost(preset("default"), base, 64 * base.n_faces)
     lv = expansion_levels(base, 64 * base.n_faces, 2.0)
-    assert unit == "formula_bytes" and EXPANSION_SHARE == 0.99
-    assert budget == EXPANSION_SHARE * mmt_formula_bytes(lv, base.n_vertices)
-    assert cost(lv) == mmt_formula_bytes(lv, base.n_vertices) > budget
+    assert unit == "formula_bytes"
+    assert budget == mmt_formula_bytes(lv, base.n_vertices) == cost(lv)
     assert cost(lv + 1) > budget > cost(np.maximum(lv - 1, 0))
 
 

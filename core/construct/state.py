@@ -23,13 +23,6 @@ from .types import ConstructCancelled, Progress
 FINISH_PHASES = ("fit", "residual_lod", "base_fit", "direction_fit", "bounds", "polish", "metrics")
 
 
-# A budget per input face keeps this share of micromesh-tools' storage on the base: where its
-# base has the size of ours (both held by the input's ratio, 1/32: igea, the turbine blade),
-# the rounding of each face's level alone decides which of the two takes more (igea's took
-# 0.1 % more than micromesh-tools' own; docs/results.md, thirty-second session).
-EXPANSION_SHARE = 0.99
-
-
 def budget_cost(s: ConstructSettings, base: TriMesh, reference_faces: int):
     """(cost(levels), budget, its unit: "bytes", "formula_bytes" or "micro_triangles") of the
     LOD budget, or (None, 0, ""). Micro-triangles are counted as the result has them (after
@@ -38,14 +31,13 @@ def budget_cost(s: ConstructSettings, base: TriMesh, reference_faces: int):
     this base, counted by its own formula (``core.lod.expansion``,
     ``metrics.mmt_formula_bytes``): a level costs more bytes per micro-triangle the lower it
     is, so adaptive levels within its micro-triangle count would take more storage than it
-    does; the budget is ``EXPANSION_SHARE`` of it."""
+    does."""
     kind, amount = s.budget()
     if kind == "bytes":
         return (lambda lv: storage_bytes(lv, base.n_vertices)["total"]), amount, kind
     if kind == "expansion":
         nv = base.n_vertices
-        budget = EXPANSION_SHARE * mmt_formula_bytes(
-            expansion_levels(base, reference_faces, amount), nv)
+        budget = mmt_formula_bytes(expansion_levels(base, reference_faces, amount), nv)
         return (lambda lv: mmt_formula_bytes(lv, nv)), float(budget), "formula_bytes"
     if kind == "micro_triangles":
         adjacency = base.face_adjacency
