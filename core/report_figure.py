@@ -11,7 +11,7 @@ from .level_colors import LEVEL_COLORS
 
 ERROR_SCALE = 0.25          # the heat map's white, as the independent judge draws it
 ROWS = [("psnr", "PSNR (dB)", "{:.2f}"), ("shell_volume", "shell volume (unit sphere)", "{:.4g}"),
-        ("geom_err", "geometric error (/ diagonal)", "{:.3g}"),
+        ("geom_err", "geometric error (/ diag.)", "{:.3g}"),
         ("iso_base", "isotropy, base", "{:.3f}"), ("iso_micro", "isotropy, micro", "{:.3f}"),
         ("base_faces", "base triangles", "{:,}"), ("micro_triangles", "micro-triangles", "{:,}"),
         ("bytes", "bytes (.bary + glTF)", "{:,}"), ("compression", "input mesh / bytes", "{:.1f}x"),
@@ -97,7 +97,7 @@ def _table(ax, data: dict) -> None:
             if data["metrics"].get(k) is not None]
     r = data["metrics"].get("residual_lod")
     if r and r.get("cut_by_time_limit"):
-        rows.append(["levels moved after the fit", "left out (the time limit)"])
+        rows.append(["levels moved after the fit", "time limit"])
     elif r:
         rows.append(["levels moved after the fit", "kept" if r["kept"] else "refused"])
         rows.append(["faces moved up / down", f"{r['faces_up']} / {r['faces_down']}"])
@@ -106,9 +106,9 @@ def _table(ax, data: dict) -> None:
                        ("lp_bounds", "least-volume bounds")):
         note = data["metrics"].get(key)
         if note:
-            passes = note.get("passes_kept", 0)
-            rows.append([label, ("kept" if note["kept"] else "refused") +
-                         (f" ({passes} passes)" if passes > 1 else "")])
+            passes = note.get("passes_kept", 0)   # short: the values' column is narrow
+            rows.append([label, f"{passes} passes" if note["kept"] and passes > 1
+                         else "kept" if note["kept"] else "refused"])
     cut = data["metrics"].get("fit_passes")
     if cut:
         rows.append(["fit passes (then the time limit)", str(cut["done"])])
