@@ -112,7 +112,7 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
                    min_quality=min_quality, progress=report, should_stop=should_stop)
     base_unit = TriMesh(dec.vertices, dec.faces)
     decimated_faces = base_unit.n_faces
-    base_unit, toward = surface_flips(base_unit, unit, min_quality)
+    base_unit, turned = surface_flips(base_unit, unit, min_quality)
     splits = 0
     if refine > 0 and faces == 0:
         base_unit, splits = refined(base_unit, unit, refine)
@@ -130,7 +130,7 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
     rep = {"target_faces": target if target > 1 else None, "faces": base_unit.n_faces,
            "vertices": base_unit.n_vertices, "stopped": dec.stopped,
            "collapses": dec.collapses, "rejected": dec.rejected, "flips": dec.flips,
-           "surface_flips": toward, "splits": splits,
+           "surface_flips": turned, "splits": splits,
            "max_error": max_error, "min_quality": min_quality,
            "error_mean": float((d * w).sum() / max(w.sum(), 1e-300)),
            "error_max": float(d.max()), "isotropy": isotropy(base_unit.vertices, base_unit.faces),

@@ -10,8 +10,8 @@ where
 - the reference vertices nearest to the two faces lie closer to the flipped pair: their
   vertex-area-weighted distance falls by more than ``GAIN_SHARE``;
 - the worse of the two triangles' quality 2r/R stays at or above the floor and falls by at
-  most ``QUALITY_SLACK`` (unbounded, these flips cost the rocker arm's base 0.027 of
-  isotropy; ``docs/results.md``);
+  most ``QUALITY_SLACK`` (with the floor alone they cost the bases up to 0.03 of
+  isotropy: ``docs/results.md``);
 - both new faces stay within ``FOLD_DEG`` of the quad's mean normal;
 - the two faces wind alike, the edge (a, b) does not exist yet, and x and y keep at least
   three neighbours;
