@@ -89,3 +89,14 @@ def test_pair_distances_are_each_points_distance_to_its_own_triangle():
         tri = np.stack([A[k], B[k], C[k]])
         want = ClosestPointIndex(tri, np.array([[0, 1, 2]])).query(P[k:k + 1])[2][0]
         assert abs(d[k] - want) < 1e-12
+
+
+def test_the_gains_measured_in_blocks_are_the_same(monkeypatch):
+    import core.base.surface_flips as flips
+    ref = TriMesh(*noisy_sphere(6000, 0.08))
+    dec = decimate(ref, int(0.08 * ref.n_faces))
+    base = TriMesh(dec.vertices, dec.faces)
+    whole, n = surface_flips(base, ref, 0.4)
+    monkeypatch.setattr(flips, "BLOCK", 7)               # a few quads at a time
+    blocks, m = flips.surface_flips(base, ref, 0.4)
+    assert n == m > 0 and np.array_equal(whole.faces, blocks.faces)

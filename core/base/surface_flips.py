@@ -32,6 +32,7 @@ QUALITY_SLACK = 0.2   # and may lower the worse triangle's 2r/R by at most this
 FOLD_DEG = 30.0       # the new faces' normals within this angle of the quad's
 ROUND_SHARE = 0.05    # at most this fraction of the faces flipped in one round
 ROUNDS = 4
+BLOCK = 500_000     # (point, quad) pairs measured at once
 
 
 def surface_flips(base: TriMesh, reference: TriMesh, min_quality: float,
@@ -96,11 +97,31 @@ def _allowed(mesh: TriMesh, q: np.ndarray, min_quality: float) -> np.ndarray:
 
 def _gains(mesh: TriMesh, q: np.ndarray, points: np.ndarray, weights: np.ndarray,
            face: np.ndarray, dist: np.ndarray) -> np.ndarray:
-    """(k,) how much closer the reference vertices nearest to each quad's faces lie to the
-    flipped pair (area-weighted distances), where that is more than ``GAIN_SHARE`` of the
-    quad's; 0 elsewhere."""
+    """(k,) how much closer the reference vertices nearest to each quad's faces (``face``,
+    at ``dist``) lie to the flipped pair (area-weighted distances), where that is more than
+    ``GAIN_SHARE`` of the quad's; 0 elsewhere. The quads go in blocks of about ``BLOCK``
+    (point, quad) pairs: memory stays bounded on inputs of millions of faces."""
     order = np.argsort(face, kind="stable")
     ptr = np.searchsorted(face[order], np.arange(mesh.n_faces + 1))
+    count = ptr[1:] - ptr[:-1]
+    ends = np.cumsum(count[q[:, 0]] + count[q[:, 1]])
+    new = np.zeros(len(q))
+    start = 0
+    while start < len(q):
+        before = ends[start - 1] if start else 0
+        stop = max(start + 1, int(np.searchsorted(ends, before + BLOCK, side="right")))
+        new[start:stop] = _flipped_distance(mesh, q[start:stop], points, weights, order, ptr)
+        start = stop
+    cost = np.bincount(face, weights * dist, mesh.n_faces)
+    old = cost[q[:, 0]] + cost[q[:, 1]]
+    gain = old - new
+    return np.where(gain > GAIN_SHARE * old, gain, 0.0)
+
+
+def _flipped_distance(mesh: TriMesh, q: np.ndarray, points: np.ndarray, weights: np.ndarray,
+                      order: np.ndarray, ptr: np.ndarray) -> np.ndarray:
+    """(k,) per quad, the area-weighted distance of the points nearest to its two faces
+    (``order[ptr[f]:ptr[f + 1]]`` for face f) to its flipped pair."""
     faces = np.concatenate([q[:, 0], q[:, 1]])
     lengths = ptr[faces + 1] - ptr[faces]
     first = np.cumsum(lengths) - lengths
@@ -109,11 +130,7 @@ def _gains(mesh: TriMesh, q: np.ndarray, points: np.ndarray, weights: np.ndarray
     V, P = mesh.vertices, points[members]
     x, y, a, b = (V[q[rows, k]] for k in (2, 3, 4, 5))
     near = np.minimum(pair_distances(P, x, b, a), pair_distances(P, b, y, a))
-    new = np.bincount(rows, weights[members] * near, len(q))
-    cost = np.bincount(face, weights * dist, mesh.n_faces)
-    old = cost[q[:, 0]] + cost[q[:, 1]]
-    gain = old - new
-    return np.where(gain > GAIN_SHARE * old, gain, 0.0)
+    return np.bincount(rows, weights[members] * near, len(q))
 
 
 def _independent(mesh: TriMesh, q: np.ndarray, gain: np.ndarray, most: int) -> np.ndarray:
