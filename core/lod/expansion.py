@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..mesh import TriMesh
-from .counts import balance_levels_adjacency, effective_micro_triangles
+from .counts import balance_levels_adjacency
 
 
 def expansion_levels(base: TriMesh, reference_faces: int, expansion: float) -> np.ndarray:
@@ -36,9 +36,3 @@ def expansion_levels(base: TriMesh, reference_faces: int, expansion: float) -> n
     levels = np.maximum(np.floor(np.nan_to_num(own, neginf=0.0) + 0.5), 0).astype(np.int64)
     return balance_levels_adjacency(base.face_adjacency, levels)
 
-
-def expansion_micro_triangles(base: TriMesh, reference_faces: int, expansion: float) -> int:
-    """The micro-triangles (after the crack-free edge decimation) of
-    :func:`expansion_levels`."""
-    return effective_micro_triangles(expansion_levels(base, reference_faces, expansion),
-                                     base.face_adjacency)
