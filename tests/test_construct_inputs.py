@@ -8,9 +8,9 @@ from tests.test_construct import icosphere
 
 
 def test_many_parts_are_said():
-    """From core.construct.frame.MANY_PARTS connected components on, the run says what they
+    """From core.construct.reference.MANY_PARTS connected components on, the run says what they
     cost; fewer parts get no warning."""
-    from core.construct.frame import MANY_PARTS, oriented_reference
+    from core.construct.reference import MANY_PARTS, oriented_reference
 
     v, f = icosphere(1)
 
@@ -28,7 +28,7 @@ def test_many_parts_are_said():
 def test_seams_split_in_a_file_are_not_parts():
     """A sphere whose vertices are split along every face (as files split them at UV seams or
     flat-shaded edges) is one part: no many-parts warning."""
-    from core.construct.frame import oriented_reference
+    from core.construct.reference import oriented_reference
 
     v, f = icosphere(2)
     split = TriMesh(v[f.reshape(-1)], np.arange(3 * len(f)).reshape(-1, 3))
@@ -40,7 +40,7 @@ def test_loose_vertices_and_repeated_faces_are_left_out():
     """A stray vertex far away (a loose vertex or edge) would shrink the object in the unit
     frame, and repeated faces make edges look non-manifold: both are left out and said, and
     what remains is the clean mesh, so the construction is the clean mesh's."""
-    from core.construct.frame import oriented_reference
+    from core.construct.reference import oriented_reference
 
     v, f = icosphere(2)
     far = np.vstack([v[:5], [[100.0, 0, 0], [100.0, 1, 0]], v[5:]])      # two loose vertices
@@ -58,7 +58,7 @@ def test_loose_vertices_and_repeated_faces_are_left_out():
 def test_a_flap_of_two_faces_wound_both_ways_is_left_out():
     """A triangle hanging on one edge of the surface, once each way round (a sheet of no
     thickness, as in the beast scan): both copies go, and the surface is manifold again."""
-    from core.construct.frame import oriented_reference
+    from core.construct.reference import oriented_reference
 
     v, f = icosphere(2)
     a, b = f[0, 0], f[0, 1]

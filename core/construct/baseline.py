@@ -16,8 +16,8 @@ from ..micromesh import MicroMesh
 from ..settings import ConstructSettings, preset
 from ..runtime.threads import set_threads
 from .evaluate import evaluate
-from .frame import (check_inputs, check_reference, oriented_reference, prepare_base,
-                    to_caller_frame)
+from .frame import check_inputs, check_reference, prepare_base, to_caller_frame
+from .reference import oriented_reference
 from .scene import bake
 from .types import ConstructResult, Progress
 

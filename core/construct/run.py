@@ -28,7 +28,8 @@ from ..runtime.threads import set_threads
 from .estimate import check_fits, estimate
 from .finalise import finalise
 from .frame import (check_inputs, check_reference, device as torch_device, fixed_levels,
-                    oriented_reference, prepare_base)
+                    prepare_base)
+from .reference import oriented_reference
 from .loop import optimise
 from .params import Parameters
 from .schedule import Schedule
@@ -171,8 +172,8 @@ def _optimise(run: RunState, schedule: Schedule, progress) -> tuple[MicroMesh, i
         params = Parameters(run.base, mm, run.s, run.device, frozen_base=run.fixed is not None,
                             held=run.held)
     if run.fixed is not None:
-        run.event(iteration=0, fixed_levels=True, micro_triangles=effective_micro_triangles(
-            run.fixed, run.base.face_adjacency))
+        run.event(iteration=0, fixed_levels=True,
+                  micro_triangles=effective_micro_triangles(run.fixed, run.base))
     run.deadline = schedule.deadline
     it_done = optimise(run, params, schedule, target_all, progress)
     run.check_stop()
