@@ -135,6 +135,17 @@ class TriMesh:
         other = np.where(a == me, b, a)
         return np.where(manifold, other, -1)
 
+    @cached_property
+    def edge_neighbors_csr(self) -> tuple[np.ndarray, np.ndarray]:
+        """Faces sharing an edge with each face (every other face of a non-manifold edge;
+        itself excluded), CSR."""
+        m = self.n_faces
+        rows, cols = np.repeat(np.arange(m), 3), self.face_edges.reshape(-1)
+        fe = sp.csr_matrix((np.ones(3 * m), (rows, cols)), shape=(m, len(self.edges)))
+        ff = (fe @ fe.T).tocoo()
+        keep = ff.row != ff.col
+        return _csr(ff.row[keep].astype(np.int64), ff.col[keep].astype(np.int64), m)
+
     # --------------------------------------------------------------- vertices
     @cached_property
     def vertex_faces_csr(self) -> tuple[np.ndarray, np.ndarray]:

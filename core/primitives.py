@@ -1,4 +1,5 @@
-"""Procedural test shapes (icosahedron, icospheres, torus, noisy sphere) as (V, F) arrays.
+"""Procedural test shapes (icosahedron, icospheres, torus, noisy and finned spheres) as (V, F)
+arrays.
 
 Used by the tests and the benchmarks (and handy for quick experiments): real meshes come from
 ``../shared/meshes``; these are the built-in, license-free shapes with known geometry.
@@ -74,6 +75,34 @@ def noisy_sphere(n_faces: int, amplitude: float = 0.05, seed: int = 0) -> tuple[
         d /= np.linalg.norm(d)
         r += amplitude / 4 * np.sin(rng.uniform(3, 25) * (v @ d) + rng.uniform(0, 2 * np.pi))
     return v * r[:, None], f
+
+
+def finned_sphere(n_faces: int, fins: int = 40, holes: int = 60, height: float = 1.5,
+                  seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`noisy_sphere` with triangular fins glued onto ``fins`` of its edges (each fin a
+    third face on its edge, its apex ``height`` edge lengths out along the normal: that edge
+    is non-manifold; no two fins share a vertex) and ``holes`` faces cut away (none touching
+    a fin: its edge keeps three faces)."""
+    v, f = noisy_sphere(n_faces, seed=seed)
+    rng = np.random.default_rng(seed + 1)
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    edges = np.unique(e, axis=0)
+    chosen, used = [], np.zeros(len(v), bool)
+    for a, b in edges[rng.permutation(len(edges))]:
+        if len(chosen) == fins:
+            break
+        if not (used[a] or used[b]):
+            used[[a, b]] = True
+            chosen.append((a, b))
+    fe = np.array(chosen, dtype=np.int64).reshape(-1, 2)
+    mid = v[fe].mean(axis=1)
+    length = np.linalg.norm(v[fe[:, 0]] - v[fe[:, 1]], axis=1)
+    apex = mid + height * length[:, None] * mid / np.linalg.norm(mid, axis=1, keepdims=True)
+    free = np.flatnonzero(~used[f].any(axis=1))
+    cut = rng.choice(free, size=min(holes, len(free)), replace=False)
+    kept = np.delete(f, cut, axis=0)
+    fin_faces = np.column_stack([fe, len(v) + np.arange(len(fe))])
+    return np.vstack([v, apex]), np.vstack([kept, fin_faces]).astype(np.int64)
 
 
 def torus(n: int = 12, m: int = 8, major: float = 1.0, minor: float = 0.35) -> tuple[np.ndarray, np.ndarray]:

@@ -24,7 +24,7 @@ def test_equal_faces_get_the_level_that_spends_the_expansion():
     base = octahedron()
     # 64 input faces, twice as many micro-triangles: 8 faces at level 2 (16 each) = 128
     assert expansion_levels(base, 64, 2.0).tolist() == [2] * 8
-    assert effective_micro_triangles(expansion_levels(base, 64, 2.0), base.face_adjacency) == 128
+    assert effective_micro_triangles(expansion_levels(base, 64, 2.0), base) == 128
     # between two levels, the nearest: log4(2·40 / 8) = 1.66 → 2, log4(2·20 / 8) = 1.16 → 1
     assert set(expansion_levels(base, 40, 2.0)) == {2}
     assert set(expansion_levels(base, 20, 2.0)) == {1}
@@ -75,6 +75,6 @@ def test_micromesh_tools_own_bases_give_its_counts(name):
     f = read_micromesh(path)
     base = TriMesh(f.positions, f.faces)
     lv = expansion_levels(base, int(stats["in_fn"]), 2.0)
-    count = effective_micro_triangles(lv, base.face_adjacency)
+    count = effective_micro_triangles(lv, base)
     assert count == pytest.approx(int(stats["micro_fn"]), rel=0.01)
     assert np.mean(lv == f.levels) > 0.95

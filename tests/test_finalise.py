@@ -24,7 +24,7 @@ def test_residual_exchange_moves_levels_to_where_the_fit_misses():
     v, f = icosphere(2)
     base = TriMesh(v, f)
     levels = np.full(base.n_faces, 2)
-    cost = lambda lv: effective_micro_triangles(lv, base.face_adjacency)  # noqa: E731
+    cost = lambda lv: effective_micro_triangles(lv, base)  # noqa: E731
     run = SimpleNamespace(s=preset("default", residual_lod=0.15), base=base, cost=cost,
                           budget=cost(levels))
     E = np.full(base.n_faces, 1e-6)
@@ -51,7 +51,7 @@ def test_quiet_faces_go_down_to_min_level(min_level):
     v, f = icosphere(2)
     base = TriMesh(v, f)
     levels = np.full(base.n_faces, 1)
-    cost = lambda lv: effective_micro_triangles(lv, base.face_adjacency)  # noqa: E731
+    cost = lambda lv: effective_micro_triangles(lv, base)  # noqa: E731
     run = SimpleNamespace(s=preset("default", min_level=min_level), base=base, cost=cost,
                           budget=cost(levels))
     E = np.full(base.n_faces, 1e-6)
@@ -84,7 +84,7 @@ def test_moved_levels_are_kept_only_where_they_lower_the_shading_error(hot_cap, 
     ref = TriMesh(rv * bumps[:, None], rf)
     levels = np.full(base.n_faces, 2)
     mm = MicroMesh.flat(base, levels)
-    cost = lambda lv: effective_micro_triangles(lv, base.face_adjacency)  # noqa: E731
+    cost = lambda lv: effective_micro_triangles(lv, base)  # noqa: E731
     run = SimpleNamespace(s=preset("default"), base=base, cost=cost, budget=cost(levels),
                           fixed=None, held_in_fit=None, scene=SimpleNamespace(ref=ref),
                           timer=PhaseTimer(),

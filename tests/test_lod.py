@@ -104,7 +104,7 @@ def test_roll_back_to_budget():
     lv = np.full(m.n_faces, 3)
     gains = {3: np.linspace(0, 1, m.n_faces), 2: np.linspace(0, 1, m.n_faces)}
     budget = 0.6 * micro_triangle_count(lv)
-    out = roll_back_to_budget(lv, gains, m.face_adjacency, micro_triangle_count, budget)
+    out = roll_back_to_budget(lv, gains, m, micro_triangle_count, budget)
     assert micro_triangle_count(out) <= budget
     assert is_balanced(m, out)
     assert out[np.argmax(gains[3])] == 3              # the most useful face kept its level
@@ -129,16 +129,16 @@ def test_exchange_to_budget_moves_triangles_to_where_they_help():
     e_now = np.full(n, 0.99)                           # level 2 barely helped almost everywhere
     hot = np.array([10, 11, 40, 41])
     e_prev[hot], e_now[hot] = 10.0, 4.0                # ... but a lot here
-    out = exchange_to_budget(lv, 2, e_prev, e_now, m.face_adjacency, micro_triangle_count, budget, 1)
+    out = exchange_to_budget(lv, 2, e_prev, e_now, m, micro_triangle_count, budget, 1)
     assert micro_triangle_count(out) <= budget
     assert is_balanced(m, out)
     assert (out[hot] == 3).all()
     assert (out == 1).sum() >= 4 * len(hot)
     # Nothing worth paying for: unchanged.
-    same = exchange_to_budget(lv, 2, np.ones(n), np.ones(n), m.face_adjacency, micro_triangle_count, budget, 1)
+    same = exchange_to_budget(lv, 2, np.ones(n), np.ones(n), m, micro_triangle_count, budget, 1)
     assert np.array_equal(same, lv)
     # Already over the budget with nothing to trade: unchanged (it raised on an empty cut).
-    over = exchange_to_budget(lv, 2, np.ones(n), np.ones(n), m.face_adjacency,
+    over = exchange_to_budget(lv, 2, np.ones(n), np.ones(n), m,
                               micro_triangle_count, budget - 1, 1)
     assert np.array_equal(over, lv)
 
@@ -159,7 +159,7 @@ def test_exchange_to_budget_pairs_ups_and_downs_in_the_budgets_own_unit():
     e_prev, e_now = np.full(n, 1.0), np.full(n, 0.99)
     hot = np.array([10, 11, 40, 41])
     e_prev[hot], e_now[hot] = 10.0, 4.0
-    out = exchange_to_budget(lv, 2, e_prev, e_now, m.face_adjacency, cost, budget, 1)
+    out = exchange_to_budget(lv, 2, e_prev, e_now, m, cost, budget, 1)
     assert cost(out) <= budget and is_balanced(m, out)
     assert (out[hot] == 3).all()
     assert (out == 1).sum() >= 3 * len(hot)           # 40 / 12 bytes: at least 3 downs each
@@ -172,5 +172,5 @@ def test_effective_count_is_the_tessellations(seed):
     lv = balance_levels(m, np.random.default_rng(seed).integers(0, 5, m.n_faces))
     t = MicroMesh.flat(m, lv).tessellate().triangles
     real = int(((t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 2] != t[:, 0])).sum())
-    assert effective_micro_triangles(lv, m.face_adjacency) == real
+    assert effective_micro_triangles(lv, m) == real
     assert real < micro_triangle_count(lv)

@@ -7,7 +7,7 @@ import numpy as np
 from ..lod import (exchange_to_budget, in_optimization_lod, post_process_lod, relative_gain,
                    roll_back_to_budget, trim_to_budget)
 from ..micromesh import MicroMesh
-from ..mesh_levels import balance_levels
+from ..mesh_levels import balance_levels, face_edge_levels
 from .scene import face_errors
 from .state import RunState
 
@@ -28,8 +28,8 @@ def next_levels(run: RunState, old: np.ndarray, errs: np.ndarray | None,
         new = np.where(old == level, level + 1, old)
     if run.cost is not None and run.cost(new) > run.budget:
         if s.lod == "in_optim" and gains is not None and level >= 1:
-            new = exchange_to_budget(old, level, run.last_errors, errs, base.face_adjacency,
-                                     run.cost, run.budget, s.min_level)
+            new = exchange_to_budget(old, level, run.last_errors, errs, base, run.cost,
+                                     run.budget, s.min_level)
         else:
             prio = gains if gains is not None else errs
             new = trim_to_budget(old, new, prio, run.cost, run.budget)
@@ -48,8 +48,8 @@ def final_levels(run: RunState, mm: MicroMesh) -> MicroMesh:
             mm = _post_process(run, mm)
     elif run.cost is not None and run.cost(mm.levels) > run.budget:
         with run.timer.phase("post_lod"):
-            mm = mm.with_levels(roll_back_to_budget(mm.levels, run.gains, run.base.face_adjacency,
-                                                    run.cost, run.budget, s.min_level))
+            mm = mm.with_levels(roll_back_to_budget(mm.levels, run.gains, run.base, run.cost,
+                                                    run.budget, s.min_level))
     if run.cost is not None and run.cost(mm.levels) < run.budget:
         new = fill_budget(run, mm.levels)
         if not np.array_equal(new, mm.levels):
@@ -60,12 +60,10 @@ def final_levels(run: RunState, mm: MicroMesh) -> MicroMesh:
 def fill_budget(run: RunState, levels: np.ndarray) -> np.ndarray:
     """Raise faces one level, highest gain first, while the budget allows (ours): the
     balancing and the granularity of the events leave up to a tenth of it unspent. Only
-    faces with no edge neighbour below them go up, so the ±1 rule holds; a face's gain is
-    what its current level brought over the one before."""
+    faces with no edge neighbour below them (all the faces of a non-manifold edge) go up, so
+    the ±1 rule holds; a face's gain is what its current level brought over the one before."""
     lv = np.asarray(levels, dtype=np.int64)
-    adj = run.base.face_adjacency
-    nb_lo = np.where(adj >= 0, lv[np.maximum(adj, 0)], 99).min(axis=1)
-    up = (lv < run.s.max_level) & (nb_lo >= lv)
+    up = (lv < run.s.max_level) & (face_edge_levels(run.base, lv)[0].min(axis=1) >= lv)
     gain = np.zeros(len(lv))
     for level, g in run.gains.items():
         gain = np.where(lv == level, np.asarray(g, float), gain)
@@ -90,8 +88,7 @@ def _post_process(run: RunState, mm: MicroMesh) -> MicroMesh:
     new = np.minimum(new, mm.levels)
     new = balance_levels(mm.base, new)
     if run.cost is not None and run.cost(new) > run.budget:
-        new = roll_back_to_budget(new, gains, mm.base.face_adjacency, run.cost, run.budget,
-                                  s.min_level)
+        new = roll_back_to_budget(new, gains, mm.base, run.cost, run.budget, s.min_level)
     return mm.with_levels(new)
 
 
@@ -100,11 +97,11 @@ def residual_exchange(run: RunState, levels: np.ndarray, residuals: np.ndarray) 
     """Levels moved to where the fitted micro-mesh still misses the reference (ours), at the
     same budget: the ``s.residual_lod`` fraction of faces with the largest residual per
     micro-triangle a level up would add go up (balanced); then faces with the smallest
-    residual per micro-triangle saved go down (only where no edge neighbour is above them,
-    which keeps the ±1 rule) until the budget holds (where they cannot pay for all the ups,
-    half as many ups are tried, down to an eighth); what is left is spent by the same order
-    as the ups. A level up is taken to remove 3/4 of a face's residual, a level down to
-    quadruple it."""
+    residual per micro-triangle saved go down (only where no edge neighbour, of all the faces
+    on a non-manifold edge, is above them, which keeps the ±1 rule) until the budget holds
+    (where they cannot pay for all the ups, half as many ups are tried, down to an eighth);
+    what is left is spent by the same order as the ups. A level up is taken to remove 3/4
+    of a face's residual, a level down to quadruple it."""
     s = run.s
     lv = np.asarray(levels, dtype=np.int64)
     if run.cost is None or s.residual_lod <= 0:
@@ -124,12 +121,11 @@ def _exchanged(run: RunState, lv: np.ndarray, ups: np.ndarray, E: np.ndarray
                ) -> np.ndarray | None:
     """:func:`residual_exchange` with these ups; None where the downs cannot pay for them."""
     s, base = run.s, run.base
-    adj = base.face_adjacency
     new = lv.copy()
     new[ups] += 1
     new = balance_levels(base, np.minimum(new, s.max_level))
     if run.cost(new) > run.budget:
-        nb_hi = np.where(adj >= 0, new[np.maximum(adj, 0)], -1).max(axis=1)
+        nb_hi = face_edge_levels(base, new)[1].max(axis=1)
         cand = np.flatnonzero((new > max(s.min_level, 0)) & (nb_hi <= new) & (new <= lv))
         order = cand[np.argsort(E[cand] / 4.0 ** (new[cand] - 1), kind="stable")]
         lo, hi = 0, len(order)              # the fewest downs that fit the budget
@@ -144,7 +140,6 @@ def _exchanged(run: RunState, lv: np.ndarray, ups: np.ndarray, E: np.ndarray
         new[order[:lo]] -= 1
         if run.cost(new) > run.budget:
             return None
-    nb_lo = np.where(adj >= 0, new[np.maximum(adj, 0)], 99).min(axis=1)
-    up = (new < s.max_level) & (nb_lo >= new)
+    up = (new < s.max_level) & (face_edge_levels(base, new)[0].min(axis=1) >= new)
     return trim_to_budget(new, np.where(up, new + 1, new),
                           np.where(up, E / 4.0 ** new, -np.inf), run.cost, run.budget)

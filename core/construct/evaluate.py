@@ -73,7 +73,7 @@ def evaluate(mm_unit: MicroMesh, reference_unit: TriMesh, s: ConstructSettings,
     out["bytes_mmt"] = mmt_formula_bytes(mm_unit.levels, base.n_vertices)
     if mm_unit.levels.max(initial=0) <= 5:   # what an export stores (11-bit values)
         out["quantization_max"], out["quantization_rms"] = quantization_error(mm_unit, bounds_unit)
-    out["micro_triangles"] = effective_micro_triangles(mm_unit.levels, base.face_adjacency)
+    out["micro_triangles"] = effective_micro_triangles(mm_unit.levels, base)
     out["base_faces"] = int(base.n_faces)
     out["levels_hist"] = np.bincount(mm_unit.levels, minlength=6).tolist()
     eb = base.boundary_edges

@@ -40,8 +40,7 @@ def budget_cost(s: ConstructSettings, base: TriMesh, reference_faces: int):
         budget = mmt_formula_bytes(expansion_levels(base, reference_faces, amount), nv)
         return (lambda lv: mmt_formula_bytes(lv, nv)), float(budget), "formula_bytes"
     if kind == "micro_triangles":
-        adjacency = base.face_adjacency
-        return (lambda lv: effective_micro_triangles(lv, adjacency)), amount, kind
+        return (lambda lv: effective_micro_triangles(lv, base)), amount, kind
     return None, 0.0, ""
 
 

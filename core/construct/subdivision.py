@@ -53,5 +53,5 @@ def subdivide(run: RunState, params: Parameters, it: int) -> None:
         nxt = nxt.with_displacements(d)
     params.set_micromesh(nxt)
     run.event(iteration=it, level=run.level + 1, subdivided=int((new > old).sum()),
-              micro_triangles=effective_micro_triangles(new, run.base.face_adjacency))
+              micro_triangles=effective_micro_triangles(new, run.base))
     run.level += 1

@@ -3,7 +3,8 @@
 budget of micro-triangles or bytes.
 
 The one-ring of a base face is the faces sharing a vertex with it (``TriMesh.face_neighbors_csr``);
-the ±1 rule is across shared edges (``TriMesh.face_adjacency``), which is what the micro-mesh
+the ±1 rule is across shared edges, among all the faces on an edge (three or more on a
+non-manifold one: ``core.mesh_levels``, the one definition), which is what the micro-mesh
 format's edge flags can stitch.
 """
 from __future__ import annotations
@@ -11,11 +12,10 @@ from __future__ import annotations
 from ..mesh_levels import balance_levels, is_balanced
 from .algorithms import in_optimization_lod, post_process_lod
 from .budget import exchange_to_budget, roll_back_to_budget, trim_to_budget
-from .counts import (balance_levels_adjacency, effective_micro_triangles, micro_triangle_count,
-                     ring_min_max)
+from .counts import effective_micro_triangles, micro_triangle_count, ring_min_max
 from .criteria import LodError, chamfer_face_errors, face_error_sums, relative_gain
 
-__all__ = ["LodError", "balance_levels", "balance_levels_adjacency", "chamfer_face_errors",
+__all__ = ["LodError", "balance_levels", "chamfer_face_errors",
            "effective_micro_triangles", "exchange_to_budget", "face_error_sums",
            "in_optimization_lod", "is_balanced", "micro_triangle_count", "post_process_lod",
            "relative_gain", "ring_min_max", "roll_back_to_budget", "trim_to_budget"]

@@ -1,12 +1,14 @@
 """Levels within a budget (micro-triangles or bytes; ours): cut the weakest subdivisions,
-exchange ups for roll-backs where the image error says so, roll back the least useful faces."""
+exchange ups for roll-backs where the image error says so, roll back the least useful faces.
+The ±1 rule is ``core.mesh_levels``': across every edge, among all the faces on it."""
 from __future__ import annotations
 
 from typing import Callable
 
 import numpy as np
 
-from .counts import balance_levels_adjacency, neighbour_levels
+from ..mesh import TriMesh
+from ..mesh_levels import balance_levels, face_edge_levels
 from .criteria import relative_gain
 
 
@@ -38,7 +40,7 @@ def trim_to_budget(old_levels: np.ndarray, new_levels: np.ndarray, gains: np.nda
 
 
 def exchange_to_budget(levels: np.ndarray, level: int, err_prev: np.ndarray, err_now: np.ndarray,
-                       face_adjacency: np.ndarray, cost: Callable[[np.ndarray], float],
+                       mesh: TriMesh, cost: Callable[[np.ndarray], float],
                        budget: float, min_level: int = 0) -> np.ndarray:
     """Spend a binding budget where it helps most (ours): subdivide faces at ``level`` to
     ``level + 1`` paid for by rolling other faces at ``level`` back to ``level - 1``.
@@ -49,19 +51,18 @@ def exchange_to_budget(levels: np.ndarray, level: int, err_prev: np.ndarray, err
     it; the ±1 rule is restored by raising, and what then overflows the budget is cut.
     """
     lv = np.asarray(levels, dtype=np.int64).copy()
-    adj = np.asarray(face_adjacency)
     e0, e1 = np.asarray(err_prev, float), np.asarray(err_now, float)
     up_val = e1 * np.clip(relative_gain(e0, e1), 0, None)
     down_val = np.clip(e0 - e1, 0, None)
-    ups, downs = _candidates(lv, level, adj, up_val, down_val, min_level)
-    trade = _Trade(adj, len(lv), budget - cost(lv), *_step_costs(lv, level, cost))
+    ups, downs = _candidates(lv, level, mesh, up_val, down_val, min_level)
+    trade = _Trade(mesh.edge_neighbors_csr, budget - cost(lv), *_step_costs(lv, level, cost))
     trade.pair(ups, downs, up_val, down_val)
     new = lv.copy()
     new[trade.downs] = level - 1
     new[trade.ups] = level + 1
-    new = balance_levels_adjacency(adj, new)
+    new = balance_levels(mesh, new)
     if cost(new) > budget:           # balancing raised some roll-backs: cut the weakest ups
-        new = _cut_ups(new, trade.ups, level, adj, cost, budget)
+        new = _cut_ups(new, trade.ups, level, mesh, cost, budget)
         if cost(new) > budget:
             return lv
     return new
@@ -81,12 +82,12 @@ def _step_costs(lv: np.ndarray, level: int, cost) -> tuple[float, float]:
     return max(float(up), 1e-9), max(float(down), 1e-9)
 
 
-def _candidates(lv, level, adj, up_val, down_val, min_level):
-    """Faces at ``level`` that may go up (no neighbour below it; best first) and that may go
-    down (no neighbour above it; least useful first)."""
+def _candidates(lv, level, mesh, up_val, down_val, min_level):
+    """Faces at ``level`` that may go up (no edge neighbour below it; best first) and that may
+    go down (no edge neighbour above it; least useful first)."""
     at = lv == level
-    nb = neighbour_levels(lv, adj)
-    nb_lo, nb_hi = nb.min(axis=1), nb.max(axis=1)
+    lo, hi = face_edge_levels(mesh, lv)
+    nb_lo, nb_hi = lo.min(axis=1), hi.max(axis=1)
     ups = np.flatnonzero(at & (nb_lo >= level) & (up_val > 0))
     ups = ups[np.argsort(-up_val[ups], kind="stable")]
     downs = np.flatnonzero(at & (nb_hi <= level)) if level - 1 >= min_level else np.array([], int)
@@ -95,18 +96,21 @@ def _candidates(lv, level, adj, up_val, down_val, min_level):
 
 class _Trade:
     """The greedy pairing of ups with the roll-backs that pay for them: ``state`` per face
-    (0 free, 1 going up, -1 going down; an up may not touch a down across an edge), the
-    budget's ``slack`` and the faces taken."""
+    (0 free, 1 going up, -1 going down; an up may not touch a down across an edge: ``ring``,
+    ``TriMesh.edge_neighbors_csr``), the budget's ``slack`` and the faces taken."""
 
-    def __init__(self, adj, n_faces, slack, c_up, c_down):
-        self.adj, self.slack, self.c_up, self.c_down = adj, slack, c_up, c_down
-        self.state = np.zeros(n_faces, np.int64)
+    def __init__(self, ring, slack, c_up, c_down):
+        self.ring, self.slack, self.c_up, self.c_down = ring, slack, c_up, c_down
+        self.state = np.zeros(len(ring[0]) - 1, np.int64)
         self.ups: list[int] = []
         self.downs: list[int] = []
 
+    def across(self, f) -> np.ndarray:
+        ptr, idx = self.ring
+        return idx[ptr[f]:ptr[f + 1]]
+
     def touches(self, f, kind) -> bool:
-        a = self.adj[f]
-        return bool((self.state[a[a >= 0]] == kind).any())
+        return bool((self.state[self.across(f)] == kind).any())
 
     def pair(self, ups, downs, up_val, down_val) -> None:
         j = 0
@@ -117,11 +121,11 @@ class _Trade:
                 self._take([f], [])
                 continue
             need = int(np.ceil((self.c_up - self.slack) / self.c_down))
-            cand, k = [], j
+            cand, k, near = [], j, self.across(f)
             while len(cand) < need and k < len(downs):
                 g = downs[k]
                 k += 1
-                if g == f or self.state[g] != 0 or self.touches(g, 1) or g in self.adj[f]:
+                if g == f or self.state[g] != 0 or self.touches(g, 1) or g in near:
                     continue
                 cand.append(g)
             if len(cand) < need or down_val[cand].sum() >= up_val[f]:
@@ -137,7 +141,7 @@ class _Trade:
         self.slack += len(downs) * self.c_down - len(ups) * self.c_up
 
 
-def _cut_ups(new, taken_up, level, adj, cost, budget):
+def _cut_ups(new, taken_up, level, mesh, cost, budget):
     """``new`` with the fewest of the last-taken ups set back to ``level`` (binary search)
     so that, balanced, it fits the budget."""
     order = np.array(taken_up, dtype=np.int64)[::-1]
@@ -146,18 +150,18 @@ def _cut_ups(new, taken_up, level, adj, cost, budget):
         mid = (lo + hi) // 2
         trial = new.copy()
         trial[order[:mid]] = level
-        trial = balance_levels_adjacency(adj, trial)
+        trial = balance_levels(mesh, trial)
         if cost(trial) <= budget:
             hi = mid
         else:
             lo = mid + 1
     new = new.copy()
     new[order[:lo]] = level
-    return balance_levels_adjacency(adj, new)
+    return balance_levels(mesh, new)
 
 
 def roll_back_to_budget(levels: np.ndarray, gains_by_level: dict[int, np.ndarray],
-                        face_adjacency: np.ndarray, cost: Callable[[np.ndarray], float],
+                        mesh: TriMesh, cost: Callable[[np.ndarray], float],
                         budget: float, min_level: int = 0) -> np.ndarray:
     """Lower the least useful faces (smallest gain of their level) until ``cost ≤ budget``,
     only where the ±1 rule allows (no edge neighbour above the face's level)."""
@@ -166,7 +170,7 @@ def roll_back_to_budget(levels: np.ndarray, gains_by_level: dict[int, np.ndarray
         top = lv.max()
         if top <= min_level:
             break
-        nb_hi = neighbour_levels(lv, face_adjacency).max(axis=1)
+        nb_hi = face_edge_levels(mesh, lv)[1].max(axis=1)
         cand = np.flatnonzero((lv == top) & (nb_hi <= top))
         if cand.size == 0:
             break

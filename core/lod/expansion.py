@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..mesh import TriMesh
-from .counts import balance_levels_adjacency
+from ..mesh_levels import raised_to_balance
 
 
 def expansion_levels(base: TriMesh, reference_faces: int, expansion: float) -> np.ndarray:
@@ -34,5 +34,5 @@ def expansion_levels(base: TriMesh, reference_faces: int, expansion: float) -> n
         own = level + 0.5 * np.log2(area / mean)        # -inf for a zero-area face: level 0
     # the nearest level, halves rounded up (as C's round does for these non-negative ones)
     levels = np.maximum(np.floor(np.nan_to_num(own, neginf=0.0) + 0.5), 0).astype(np.int64)
-    return balance_levels_adjacency(base.face_adjacency, levels)
+    return raised_to_balance(base, levels)
 
