@@ -1,4 +1,4 @@
-"""PLY/OBJ reading and binary PLY writing."""
+"""PLY/OBJ/STL reading and binary PLY writing."""
 from __future__ import annotations
 
 import csv
@@ -114,6 +114,69 @@ def test_malformed_files_raise(tmp_path, content, name):
     p.write_bytes(content)
     with pytest.raises(MeshFileError):
         read_mesh(p)
+
+
+CUBE_TRIS = CUBE_V[_fan(CUBE_QUADS)]          # (12, 3, 3): the cube's triangles, corners
+
+
+def _stl_binary(tris: np.ndarray, header: bytes = b"solid cube (binary, as many exporters)"
+                ) -> bytes:
+    rec = np.zeros(len(tris), dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
+    rec["v"] = tris
+    return header.ljust(80, b" ") + np.uint32(len(tris)).tobytes() + rec.tobytes()
+
+
+def _stl_ascii(tris: np.ndarray, name: str = "cube", newline: str = "\n") -> str:
+    lines = [f"solid {name}"]
+    for t in tris:
+        lines += ["  facet normal 0 0 0", "    outer loop"]
+        lines += [f"      vertex {x:.9g} {y:.9g} {z:.9g}" for x, y, z in t]
+        lines += ["    endloop", "  endfacet"]
+    return newline.join(lines + [f"endsolid {name}", ""])
+
+
+@pytest.mark.parametrize("kind", ["binary", "ascii", "ascii_crlf_two_solids"])
+def test_stl_is_read_as_the_triangle_soup_it_lists(tmp_path, kind):
+    """A binary STL whose header begins with "solid" is still binary (told by its size);
+    ASCII with CRLF line ends and two solids in one file; every triangle keeps its three
+    vertices as listed (the construction welds them, not the reader)."""
+    p = tmp_path / "cube.stl"
+    if kind == "binary":
+        p.write_bytes(_stl_binary(CUBE_TRIS))
+    elif kind == "ascii":
+        p.write_text(_stl_ascii(CUBE_TRIS))
+    else:
+        p.write_text(_stl_ascii(CUBE_TRIS[:5], "a", "\r\n") + _stl_ascii(CUBE_TRIS[5:], "b", "\r\n"))
+    m = read_mesh(p)
+    assert np.array_equal(m.vertices, CUBE_TRIS.reshape(-1, 3))
+    assert np.array_equal(m.faces, np.arange(36).reshape(12, 3))
+
+
+@pytest.mark.parametrize("make, reason", [
+    (lambda: _stl_binary(CUBE_TRIS)[:-7], "truncated binary STL: 12 triangles take 684 bytes, "
+                                          "the file has 677"),
+    (lambda: _stl_binary(CUBE_TRIS) + b"\0\0", "2 bytes more than its 12 triangles"),
+    (lambda: _stl_binary(CUBE_TRIS[:0]), "no triangles"),
+    (lambda: b"solid empty\nendsolid empty\n", "no triangles"),
+    (lambda: b"sol", "not an STL file"),
+    (lambda: _stl_binary(np.where(np.arange(12)[:, None, None] < 3, np.inf, CUBE_TRIS)),
+     "3 of 12 triangles have NaN or infinite coordinates"),
+    (lambda: _stl_ascii(CUBE_TRIS).replace("vertex 1 0 0", "vertex 1 nan 0", 1).encode(),
+     "1 of 12 triangles have NaN or infinite"),
+    (lambda: _stl_ascii(CUBE_TRIS).encode()[:-60], "truncated ASCII STL"),
+    (lambda: _stl_ascii(CUBE_TRIS).replace("      vertex 1 1 0\n", "", 1).encode(),
+     "not a valid ASCII STL at line 6 ('endloop')"),
+    (lambda: _stl_ascii(CUBE_TRIS).replace("vertex 1 0 0", "vertex 1 zero 0", 1).encode(),
+     "bad number"),
+    (lambda: _stl_ascii(CUBE_TRIS).replace("vertex 1 0 0", "vertex 1 0", 1).encode(),
+     "without three numbers"),
+])
+def test_a_bad_stl_is_refused_naming_why(tmp_path, make, reason):
+    p = tmp_path / "bad.stl"
+    p.write_bytes(make())
+    with pytest.raises(MeshFileError) as e:
+        read_mesh(p)
+    assert reason in str(e.value) and "\n" not in str(e.value)
 
 
 def test_missing_file_raises(tmp_path):
