@@ -111,5 +111,9 @@ def _components(nf: int, fa: np.ndarray, fb: np.ndarray) -> np.ndarray:
 
 
 def _signed_volumes(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Each face's signed volume about the bounding box's centre (a closed part's sum is the
+    same about any point; about the world's origin, a part far from it would sum terms of
+    its distance cubed, and round its sign away)."""
+    V = V - (V.min(axis=0) + V.max(axis=0)) / 2
     a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
     return np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0
