@@ -2,9 +2,12 @@
 pack and unpack ``.glb``. Only what micro-mesh files need (no images, no animation)."""
 from __future__ import annotations
 
+import base64
+import binascii
 import json
 import struct
 from pathlib import Path
+from urllib.parse import unquote
 
 import numpy as np
 
@@ -132,10 +135,16 @@ class Document:
         return self._buffers[i]
 
     def external(self, uri: str) -> bytes:
-        """A file the document names (relative to it); data URIs are not supported."""
+        """A file the document names (relative to it), or a base64 data URI's bytes."""
         if uri.startswith("data:"):
-            raise GltfError(f"{self.path.name}: data URIs are not supported")
-        p = self.path.parent / uri.replace("%20", " ")
+            head, _, payload = uri.partition(",")
+            if not head.endswith(";base64"):
+                raise GltfError(f"{self.path.name}: a data URI that is not base64")
+            try:
+                return base64.b64decode(payload, validate=True)
+            except binascii.Error:
+                raise GltfError(f"{self.path.name}: a data URI whose base64 is damaged") from None
+        p = self.path.parent / unquote(uri)
         if not p.is_file():
             raise GltfError(f"{self.path.name}: the file it names, {uri}, is missing")
         return p.read_bytes()
