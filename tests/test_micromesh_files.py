@@ -14,6 +14,7 @@ from hypothesis import given, settings, strategies as st
 from core.bounds import baked, tight_bounds, unit_bounds
 from core.io import bary as B
 from core.io.bary_values import decode_values, encode_values
+from core.io.gltf import Document
 from core.io.micromesh_export import (ExportError, decoded_positions, stored_values,
                                       write_micromesh)
 from core.io.micromesh_import import MicromeshFileError, read_micromesh
@@ -112,6 +113,24 @@ def test_y_up_rotates_positions_and_directions(tmp_path, mm):
     f = read_micromesh(tmp_path / "m.gltf")
     v = mm.base.vertices
     np.testing.assert_allclose(f.positions, np.stack([v[:, 0], v[:, 2], -v[:, 1]], 1), atol=1e-6)
+
+
+@pytest.mark.parametrize("suffix", [".gltf", ".glb"])
+def test_far_from_the_origin_the_file_keeps_the_detail(tmp_path, mm, suffix):
+    """At 1e6 float32 positions would be 0.06 apart: the file holds them about a node's
+    translation, and reads back in place to float32's step at the object's size; near the
+    origin there is no translation."""
+    offset = np.array([1e6, -1e6, 1e6])
+    far = MicroMesh(mm.base.with_vertices(mm.base.vertices + offset), mm.directions, mm.levels,
+                    mm.displacements)
+    write_micromesh(tmp_path / f"far{suffix}", far, value_format="float")
+    write_micromesh(tmp_path / f"near{suffix}", mm, value_format="float")
+    f, near = read_micromesh(tmp_path / f"far{suffix}"), read_micromesh(tmp_path / f"near{suffix}")
+    diag = mm.base.bbox_diagonal
+    assert np.abs(f.positions - far.base.vertices).max() < 1e-6 * diag
+    back, back_near = (x.micromesh().micro_vertex_positions() for x in (f, near))
+    assert np.abs(back - offset - back_near).max() < 1e-6 * diag     # as the file at the origin
+    assert "translation" not in Document(tmp_path / f"near{suffix}").doc["nodes"][0]
 
 
 def test_decode_values_refuses_runs_past_the_end(mm):

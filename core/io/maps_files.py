@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..float32_origin import node_translation, relative
 from ..maps import Maps, unit_directions, vertex_tangents
 from ..micromesh import MicroMesh
 from .gltf import Builder
@@ -51,8 +52,8 @@ def base_gltf(path: Path, mm: MicroMesh, maps: Maps, normal_uri: str, height_uri
     rot = Y_UP.T if y_up else np.eye(3)
     g = Builder()
     idx = g.accessor(at.faces.reshape(-1), "<u4", "indices", target=34963)
-    pos = g.accessor(mm.base.vertices[at.vertex] @ rot, "<f4", "positions", target=34962,
-                     bounds=True)
+    local, origin = relative(mm.base.vertices[at.vertex] @ rot)    # far: a node translation
+    pos = g.accessor(local, "<f4", "positions", target=34962, bounds=True)
     nrm = g.accessor(unit_directions(mm)[at.vertex] @ rot, "<f4", "normals", target=34962)
     tan = vertex_tangents(mm, at)
     tan = g.accessor(np.concatenate([tan[:, :3] @ rot, tan[:, 3:]], 1), "<f4", "tangents",
@@ -85,6 +86,6 @@ def base_gltf(path: Path, mm: MicroMesh, maps: Maps, normal_uri: str, height_uri
     doc["meshes"] = [{"name": path.stem, "primitives": [{
         "attributes": {"POSITION": pos, "NORMAL": nrm, "TANGENT": tan, "TEXCOORD_0": uv},
         "indices": idx, "material": 0, "mode": 4}]}]
-    doc["nodes"] = [{"mesh": 0, "name": path.stem}]
+    doc["nodes"] = [{"mesh": 0, "name": path.stem, **node_translation(origin)}]
     doc["scenes"], doc["scene"] = [{"nodes": [0]}], 0
     return [(path.with_suffix(".bin"), blob), (path, json.dumps(doc, indent=1).encode())]

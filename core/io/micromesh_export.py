@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..bounds import DirectionBounds, normalized_values, tight_bounds
+from ..float32_origin import node_translation, relative
 from ..micromesh import MicroMesh
 from ..level_grid import BUILD_MAX_LEVEL
 from ..mesh_levels import edge_flags
@@ -138,7 +139,8 @@ def _document(mm: MicroMesh, bounds: DirectionBounds, path: Path, embedded: byte
     g = Builder()
     base = mm.base
     idx = g.accessor(base.faces.reshape(-1), "<u4", "indices", target=34963)
-    pos = g.accessor(base.vertices, "<f4", "positions", target=34962, bounds=True)
+    local, origin = relative(base.vertices)    # far from the origin: a node translation
+    pos = g.accessor(local, "<f4", "positions", target=34962, bounds=True)
     nrm = g.accessor(_unit(base.vertex_normals), "<f4", "normals", target=34962)
     dirs = g.accessor(mm.directions, "<f4", "directions")
     dbounds = g.accessor(np.stack([bounds.bias, bounds.scale], 1), "<f4", "direction_bounds")
@@ -153,7 +155,7 @@ def _document(mm: MicroMesh, bounds: DirectionBounds, path: Path, embedded: byte
         "attributes": {"POSITION": pos, "NORMAL": nrm}, "indices": idx, "mode": 4,
         "extensions": {"NV_displacement_micromap": {"micromap": 0, **common},
                        "NV_micromap_tooling": {**common, "subdivisionLevels": levels}}}]}]
-    doc["nodes"] = [{"mesh": 0, "name": path.stem}]
+    doc["nodes"] = [{"mesh": 0, "name": path.stem, **node_translation(origin)}]
     doc["scenes"], doc["scene"] = [{"nodes": [0]}], 0
     doc["extensions"] = {"NV_micromaps": {"micromaps": [micromap]}}
     doc["extensionsUsed"] = list(EXTENSIONS)
