@@ -27,13 +27,14 @@ def test_many_parts_are_said():
 
 def test_seams_split_in_a_file_are_not_parts():
     """A sphere whose vertices are split along every face (as files split them at UV seams or
-    flat-shaded edges) is one part: no many-parts warning."""
+    flat-shaded edges) is one part: welded (and said), no many-parts warning."""
     from core.construct.reference import oriented_reference
 
     v, f = icosphere(2)
     split = TriMesh(v[f.reshape(-1)], np.arange(3 * len(f)).reshape(-1, 3))
     assert split.n_components == len(f)
-    assert oriented_reference(split)[1] == []
+    assert oriented_reference(split)[1] == [f"{3 * len(f) - len(v)} coincident vertices (within "
+                                            "1e-06 of the bounding-box diagonal) were welded"]
 
 
 def test_loose_vertices_and_repeated_faces_are_left_out():

@@ -3,8 +3,8 @@
 
 It works in the reference's unit-sphere frame, with coordinates rounded to float32 there, so
 copies of a mesh at any scale or position give the same base (up to that similarity), and on
-the reference with exactly coincident vertices merged (split UV seams or flat-shaded edges of
-an imported file are one surface). The
+the reference with coincident vertices merged (split UV seams or flat-shaded edges of an
+imported file, triangle soups are one surface: ``core.weld``). The
 target is a face count, a ratio of the input's faces, or only the error bound (both 0).
 Afterwards it measures what it made: the distance from every reference vertex to the base
 (relative to the bounding-box diagonal), the isotropy, and the topology against the input's,
@@ -19,10 +19,11 @@ from typing import Callable
 import numpy as np
 
 from ..closest import ClosestPointIndex
-from ..mesh import TriMesh
+from ..mesh import MeshError, TriMesh
 from ..normalization import unit_sphere_normalization
 from ..metrics import isotropy
 from ..settings import ConstructSettings
+from ..weld import weld
 from .decimate import decimate
 from .refine import refine as refined
 from .surface_flips import surface_flips
@@ -58,15 +59,13 @@ def target_faces(n_faces: int, ratio: float = 0.0, faces: int = 0) -> int:
 
 
 def welded(mesh: TriMesh) -> TriMesh:
-    """``mesh`` with exactly coincident vertices merged and the faces that then repeat a
-    vertex dropped: files often split vertices along UV seams or flat-shaded edges, which
-    would make every patch a part of its own."""
-    v, inv = np.unique(mesh.vertices, axis=0, return_inverse=True)
-    f = inv.reshape(-1)[mesh.faces]
-    f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])]
-    if len(f) == 0:
-        raise BaseError("the mesh has no faces with three distinct vertices")
-    return TriMesh(v, f)
+    """``mesh`` with coincident vertices merged (``core.weld``) and the faces that then repeat a
+    vertex dropped: files often split vertices along UV seams or flat-shaded edges, or are
+    triangle soups, which would make every patch a part of its own."""
+    try:
+        return weld(mesh).mesh
+    except MeshError as e:
+        raise BaseError(str(e)) from None
 
 
 def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,

@@ -1,26 +1,34 @@
-"""The reference made consistent for a construction: loose vertices, repeated faces and
-sheets of no thickness left out, the winding made consistent (``core.orient``), and in words
+"""The reference made consistent for a construction: coincident vertices welded
+(``core.weld``: a triangle soup is one surface), loose vertices, faces of no area, repeated
+faces and sheets of no thickness left out, the winding made consistent (``core.orient``), and in words
 what was changed and what the base cannot keep (the caller's mesh is not changed)."""
 from __future__ import annotations
 
 import numpy as np
 
-from ..base.build import welded
-from ..mesh import TriMesh
+from ..mesh import MeshError, TriMesh
 from ..orient import orient
+from ..weld import TOLERANCE, weld
+from .types import ConstructError
 
 
 MANY_PARTS = 10     # from this many connected components on, a warning says what they cost
 
 
 def oriented_reference(reference: TriMesh) -> tuple[TriMesh, list[str]]:
-    """The reference with consistent winding, closed parts facing out (``core.orient``), and
-    in words what was turned, which edges no surface can keep and whether it has many parts
-    (the caller's mesh is not changed)."""
-    reference, warnings = _without_loose_and_duplicates(reference)
+    """The reference with coincident vertices welded, with consistent winding, closed parts
+    facing out (``core.orient``), and in words what was welded, left out and turned, which
+    edges no surface can keep and whether it has many parts (the caller's mesh is not
+    changed)."""
+    try:
+        w = weld(reference)
+    except MeshError as e:
+        raise ConstructError(f"the input has no surface: {e}") from None
+    reference, warnings = _without_loose_and_duplicates(w.mesh)
+    warnings = [w.warning()] + warnings if w.merged else warnings
     o = orient(reference)
     warnings += o.warnings()
-    parts = welded(reference).n_components      # seams split in the file are not parts
+    parts = reference.n_components
     if parts >= MANY_PARTS:
         warnings.append(f"the input has {parts} separate parts: the base keeps every one, so "
                         "small parts take base triangles and budget from the large ones")
@@ -33,7 +41,10 @@ def oriented_reference(reference: TriMesh) -> tuple[TriMesh, list[str]]:
 
 def _without_loose_and_duplicates(mesh: TriMesh) -> tuple[TriMesh, list[str]]:
     """``mesh`` without vertices no face uses (they would move the unit frame: a stray point
-    far away shrinks the object in every view), without repeated faces (the same three
+    far away shrinks the object in every view), without faces of no area (a face along a
+    line or on a point, within the weld's tolerance: nothing to see, but an edge it lies on
+    would look non-manifold),
+    without repeated faces (the same three
     vertices again, wound the same way: one stays) and without faces that have a copy wound
     the other way (a sheet of no thickness, a flap on the surface: all its copies go), and
     what was left out, in words."""
@@ -52,6 +63,9 @@ def _without_loose_and_duplicates(mesh: TriMesh) -> tuple[TriMesh, list[str]]:
     keep[first] = True
     repeated = int((~keep & ~sheet).sum())
     keep &= ~sheet
+    flat = _flat(mesh)
+    repeated -= int((~keep & ~sheet & flat).sum())
+    keep &= ~flat
     used = np.zeros(mesh.n_vertices, bool)
     used[faces] = True
     loose = int((~used).sum())               # in no face of the input (a sheet's tip is not)
@@ -61,6 +75,8 @@ def _without_loose_and_duplicates(mesh: TriMesh) -> tuple[TriMesh, list[str]]:
     warnings = []
     if loose:
         warnings.append(f"{loose} vertices in no face (loose vertices or edges) were left out")
+    if flat.any():
+        warnings.append(f"{int(flat.sum())} faces of no area (degenerate) were left out")
     if repeated:
         warnings.append(f"{repeated} repeated faces (the same three vertices again) were left "
                         "out")
@@ -71,6 +87,15 @@ def _without_loose_and_duplicates(mesh: TriMesh) -> tuple[TriMesh, list[str]]:
         return mesh, warnings
     index = np.cumsum(used) - 1
     return TriMesh(mesh.vertices[used], index[faces]), warnings
+
+
+def _flat(mesh: TriMesh) -> np.ndarray:
+    """The faces of no area: each corner within the weld's tolerance of the line through the
+    other two (a face on a line or a point; one read back from float32 is not exactly flat)."""
+    tri = mesh.vertices[mesh.faces]
+    longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+    height = 2 * mesh.face_areas / np.maximum(longest, np.finfo(float).tiny)
+    return height <= TOLERANCE * mesh.bbox_diagonal
 
 
 def _rotated_to_smallest(faces: np.ndarray) -> np.ndarray:
