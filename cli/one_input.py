@@ -101,10 +101,12 @@ def _write_files(bpy, obj, source, outcome, args, out, progress, t0: float) -> N
                                                 args.layout, out)
     result_files.write_report(outcome, out)
     if args.ply:
+        from ..core.float32_origin import float32_origin
         from ..core.io.mesh_files import write_ply
 
-        tess = outcome.micromesh.tessellate()
-        write_ply(out.temp("_micromesh.ply"), tess.vertices, tess.triangles)
+        tess = outcome.micromesh.tessellate()     # doubles where float32 would blur it
+        write_ply(out.temp("_micromesh.ply"), tess.vertices, tess.triangles,
+                  double=float32_origin(tess.vertices) is not None)
     out.temp(".metrics.json").write_text(json.dumps(
         {"name": source.name, "object": obj.name, "method": outcome.method,
          "metrics": writeback._jsonable(m), "settings": outcome.settings}, indent=1))

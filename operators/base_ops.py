@@ -47,16 +47,18 @@ def base_arrays(base_obj: bpy.types.Object) -> tuple[TriMesh, np.ndarray]:
 def link_base(context, src: bpy.types.Object, vertices: np.ndarray,
               faces: np.ndarray, uv: np.ndarray | None = None) -> bpy.types.Object:
     """``<source>_base`` holding the world-space triangles (an earlier base of the same source
-    is reused), shown as wire; ``uv`` (faces, 3, 2): a UV map "UVMap" at their corners."""
+    is reused), shown as wire, placed at their float32 origin where they are far from the
+    world's (``bl_mesh.placed_mesh``); ``uv`` (faces, 3, 2): a UV map "UVMap" at their
+    corners."""
     name = f"{src.name}_base"
-    mesh = bl_mesh.arrays_to_mesh(name, vertices, faces)
+    mesh, origin = bl_mesh.placed_mesh(name, vertices, faces)
     if uv is not None:
         mesh.uv_layers.new(name="UVMap").data.foreach_set(
             "uv", np.asarray(uv, dtype=np.float32).reshape(-1))
     obj, reused = bl_mesh.object_with_mesh(context, name, mesh, src,
                                            reuse=lambda o: o.micromesh_source == src)
-    if reused:  # the arrays are in world space
-        obj.matrix_world = ((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1))
+    if reused or origin is not None:  # the arrays are in world space
+        bl_mesh.place(obj, origin)
     obj.micromesh_source = src
     obj.display_type = "WIRE"
     return obj

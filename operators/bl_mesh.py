@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import bpy
 import numpy as np
+from mathutils import Matrix
 
+from ..core.float32_origin import relative
 from ..core.mesh import MeshError, TriMesh
 
 
@@ -28,7 +30,8 @@ def mesh_to_arrays(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph | None 
 
     ``notes``: where to say, in words, that quads and n-gons were triangulated and that shape
     keys were mixed in.
-    Raises :class:`~core.mesh.MeshError` when the object has no triangles.
+    Raises :class:`~core.mesh.MeshError` when the object has no triangles, or NaN or
+    infinite coordinates (how many vertices).
     """
     if depsgraph is None:
         depsgraph = bpy.context.evaluated_depsgraph_get()
@@ -53,9 +56,14 @@ def mesh_to_arrays(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph | None 
     if notes is not None and keys is not None and len(keys.key_blocks) > 1:
         notes.append(f"'{obj.name}' has {len(keys.key_blocks) - 1} shape keys: their current "
                      "mix (as the viewport shows it) was used")
-    if world:
+    if world:      # in float64: a location far from the origin keeps the mesh's own detail
         m = np.array(obj_eval.matrix_world, dtype=np.float64)
-        v = v @ m[:3, :3].T + m[:3, 3]
+        with np.errstate(invalid="ignore", over="ignore"):     # non-finite: refused below
+            v = v @ m[:3, :3].T + m[:3, 3]
+    bad = int((~np.isfinite(v)).any(axis=1).sum())
+    if bad:
+        raise MeshError(f"object '{obj.name}': {bad} of {len(v)} vertices have NaN or "
+                        "infinite coordinates")
     return TriMesh(v, f)
 
 
@@ -99,6 +107,21 @@ def arrays_to_mesh(name: str, vertices: np.ndarray, faces: np.ndarray) -> bpy.ty
     mesh.polygons.foreach_set("loop_start", np.arange(0, 3 * len(f), 3, dtype=np.int32))
     mesh.update(calc_edges=True)
     return mesh
+
+
+def placed_mesh(name: str, vertices: np.ndarray, faces: np.ndarray
+                ) -> tuple[bpy.types.Mesh, np.ndarray | None]:
+    """:func:`arrays_to_mesh` of world-space ``vertices``, relative to their float32 origin
+    where float32 coordinates would blur them (``core.float32_origin``); that origin (None:
+    the world's), where :func:`place` puts the object holding the mesh."""
+    local, origin = relative(vertices)
+    return arrays_to_mesh(name, local, faces), origin
+
+
+def place(obj: bpy.types.Object, origin: np.ndarray | None) -> None:
+    """``obj`` at ``origin`` (None: the world's origin), not rotated, not scaled."""
+    obj.matrix_world = Matrix.Translation([0.0, 0.0, 0.0] if origin is None
+                                          else [float(x) for x in origin])
 
 
 def object_with_mesh(context, name: str, mesh: bpy.types.Mesh, source: bpy.types.Object,

@@ -105,9 +105,10 @@ class MICROMESH_OT_import(bpy.types.Operator, ImportHelper):
                    "file": str(path)}
         # new objects only: an import never replaces a construction of the same name
         base_name, name = _unused(f"{path.stem}_base"), _unused(f"{path.stem}_micromesh")
-        base = bl_mesh.arrays_to_mesh(base_name, mm.base.vertices, mm.base.faces)
+        base, origin = bl_mesh.placed_mesh(base_name, mm.base.vertices, mm.base.faces)
         base_obj, _ = bl_mesh.object_with_mesh(context, base_name, base, None,
                                                reuse=lambda o: False)
+        bl_mesh.place(base_obj, origin)
         base_obj.display_type = "WIRE"
         obj = writeback.write_result(context, None, base_obj, Outcome(mm, None, metrics,
                                                                       method="import"), name=name)

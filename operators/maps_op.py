@@ -26,13 +26,15 @@ def maps_object(context, source, mm: MicroMesh, maps: Maps, name: str) -> bpy.ty
     """``name``: the base split at the atlas' seams, with UVs, unit directions, the height
     modifier (level: the result's finest) and a material holding the normal map."""
     at = maps.atlas
-    mesh = bl_mesh.arrays_to_mesh(name, mm.base.vertices[at.vertex], at.faces)
+    mesh, origin = bl_mesh.placed_mesh(name, mm.base.vertices[at.vertex], at.faces)
     uv = mesh.uv_layers.new(name="UVMap")
     uv.data.foreach_set("uv", at.corner_uv.reshape(-1).astype(np.float32))
     a = mesh.attributes.new("micromesh_unit_direction", "FLOAT_VECTOR", "POINT")
     a.data.foreach_set("vector", unit_directions(mm)[at.vertex].astype(np.float32).reshape(-1))
-    obj, _ = bl_mesh.object_with_mesh(context, name, mesh, source,
-                                      reuse=lambda o: o.modifiers.get(MODIFIER) is not None)
+    obj, reused = bl_mesh.object_with_mesh(context, name, mesh, source,
+                                           reuse=lambda o: o.modifiers.get(MODIFIER) is not None)
+    if reused or origin is not None:   # world space, centred where far from the origin
+        bl_mesh.place(obj, origin)
     height = image(f"{name}_height", maps.height)
     normal = image(f"{name}_normal", maps.normal)
     mod = obj.modifiers.get(MODIFIER) or obj.modifiers.new(MODIFIER, "NODES")

@@ -81,7 +81,7 @@ def write_result(context, source: bpy.types.Object, base_obj: bpy.types.Object |
     mm = out.micromesh
     tess = mm.tessellate()
     name = name or f"{source.name}_micromesh"
-    mesh = bl_mesh.arrays_to_mesh(name, tess.vertices, tess.triangles)
+    mesh, origin = bl_mesh.placed_mesh(name, tess.vertices, tess.triangles)   # far: centred
     levels = mm.levels[tess.triangle_face]
     _attr(mesh, "micromesh_base_face", "INT", "FACE", tess.triangle_face.astype(np.int32))
     _attr(mesh, "micromesh_level", "INT", "FACE", levels.astype(np.int32))
@@ -93,8 +93,10 @@ def write_result(context, source: bpy.types.Object, base_obj: bpy.types.Object |
     mesh.color_attributes.active_color = col
     mesh.color_attributes.render_color_index = mesh.color_attributes.active_color_index
 
-    obj, _ = bl_mesh.object_with_mesh(context, name, mesh, source,
-                                      reuse=lambda o: o.get(DATA_KEY) is not None)
+    obj, reused = bl_mesh.object_with_mesh(context, name, mesh, source,
+                                           reuse=lambda o: o.get(DATA_KEY) is not None)
+    if reused or origin is not None:   # the tessellation is in world space
+        bl_mesh.place(obj, origin)
     obj.micromesh_source = source
     obj.micromesh_base = base_obj
     store_bytes(obj, DATA_KEY, pack(out))

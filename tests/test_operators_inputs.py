@@ -379,3 +379,41 @@ def test_carried_emission_reaches_gltf_as_the_source_shows_it():
         mr = out["metallicRoughnessTexture"]
         np.testing.assert_allclose(mr[..., 1], 0.3, rtol=1e-6)       # Roughness: the value
         np.testing.assert_allclose(mr[..., 2], 0.25, rtol=1e-6)      # Metallic: luminance
+
+
+@pytest.mark.parametrize("fmt", ["stl", "usdc"])
+def test_an_stl_or_usd_imported_by_blender_constructs(scene, tmp_path, fmt):
+    """The panel's inputs as Blender's own importers bring them in (STL: a mesh of its
+    listed triangles; USD: an object under its file's transform): Construct builds on them."""
+    path = tmp_path / f"ball.{fmt}"
+    src = scene.micromesh.source
+    if fmt == "stl":
+        assert bpy.ops.wm.stl_export(filepath=str(path)) == {"FINISHED"}
+    else:
+        assert bpy.ops.wm.usd_export(filepath=str(path)) == {"FINISHED"}
+    bpy.data.objects.remove(src)
+    before = set(bpy.data.objects)
+    if fmt == "stl":
+        assert bpy.ops.wm.stl_import(filepath=str(path)) == {"FINISHED"}
+    else:
+        assert bpy.ops.wm.usd_import(filepath=str(path)) == {"FINISHED"}
+    (obj,) = [o for o in bpy.data.objects if o not in before and o.type == "MESH"]
+    scene.micromesh.source = obj
+    m = _construct(scene)
+    assert m["reference_faces"] == 320 and np.isfinite(m["psnr"]) and m["psnr"] > 20
+    tess = writeback.load_outcome(bpy.data.objects[f"{obj.name}_micromesh"]).micromesh
+    x = tess.tessellate().vertices
+    np.testing.assert_allclose((x.max(0) + x.min(0)) / 2, (1.0, 0.0, 0.0), atol=0.05)
+
+
+def test_infinite_coordinates_are_refused_in_one_line(scene):
+    src = scene.micromesh.source
+    co = _vertices(src.data).copy()
+    co[[3, 7, 9]] = np.inf
+    src.data.vertices.foreach_set("co", co.reshape(-1))
+    src.data.update()
+    with pytest.raises(RuntimeError) as e:
+        bpy.ops.micromesh.construct(method="OPTIMIZE")
+    text = str(e.value).strip()
+    assert "'rock': 3 of 162 vertices have NaN or infinite coordinates" in text
+    assert len(text.splitlines()) == 1 and "rock_micromesh" not in bpy.data.objects
