@@ -3,10 +3,10 @@
 With no ``--input`` it builds the built-in demo: a procedurally generated detailed mesh (an
 icosphere displaced by Blender's procedural textures, made at run time), decimated into a base
 (``core.base``: topology kept, error and triangle shape bounded) and turned into a micro-mesh
-within a storage budget. With ``--input`` (one file or a folder of .ply / .obj / .glb / .gltf /
-.fbx / .blend; a micro-mesh glTF is read as its tessellation) it does the same per input: the
-same workflow as the add-on's panel (``operators.pipeline``). Per input NAME it writes
-``NAME.blend`` (holding ``NAME_micromesh`` and ``NAME_base``), the micro-mesh for other tools
+within a storage budget. With ``--input`` (one file or a folder of .ply / .obj / .stl / .glb /
+.gltf / .fbx / .usd / .usda / .usdc / .usdz / .blend; a micro-mesh glTF is read as its
+tessellation) it does the same per input: the same workflow as the add-on's panel
+(``operators.pipeline``). Per input NAME it writes ``NAME.blend`` (holding ``NAME_micromesh`` and ``NAME_base``), the micro-mesh for other tools
 (``NAME.gltf`` + ``.bin`` + ``.bary``; or ``--export glb``), with ``--maps RES`` height and
 normal maps (``NAME_maps`` in the .blend, ``NAME_height.exr``, ``NAME_normal.png``,
 ``NAME_base.gltf``), the run report (``NAME.report.png``, ``NAME.report.json``),
@@ -106,7 +106,7 @@ def run_all(args, settings, jobs: list, sets: list, rows: list) -> None:
                     mb = path.stat().st_size / 2 ** 20
                     print(f"[{out.name}] reading {path.name} ({mb:.{0 if mb >= 10 else 1}f} MB)",
                           flush=True)
-                    source = sources.import_source(path)
+                    source = sources.import_source(path, verbose=args.verbose)
                     source.name = out.name
                     print(f"[{out.name}] read in {time.perf_counter() - t_read:.1f} s",
                           flush=True)

@@ -7,7 +7,8 @@ import sys
 from pathlib import Path
 
 DESCRIPTION = "Headless micro-mesh construction: the add-on's workflow on files or the demo."
-SUFFIXES = (".ply", ".obj", ".glb", ".gltf", ".fbx", ".blend")
+SUFFIXES = (".ply", ".obj", ".stl", ".glb", ".gltf", ".fbx", ".usd", ".usda", ".usdc", ".usdz",
+            ".blend")
 EXIT_CODES = """exit status:
   0    every input done
   1    some inputs failed (each named on one line; the others were done)
@@ -81,6 +82,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--ply", action="store_true", help="also write NAME_micromesh.ply")
     p.add_argument("--force", action="store_true", help="replace results that already exist")
     p.add_argument("--threads", type=int, default=0, help="CPU threads (0: all usable cores)")
+    p.add_argument("--verbose", action="store_true",
+                   help="show what Blender's importers print (glTF, FBX, USD, .blend): hidden "
+                        "otherwise, a failure said in one line")
     p.add_argument("--demo-subdivisions", type=int, default=7, help=argparse.SUPPRESS)
     return p.parse_args(argv)
 

@@ -7,8 +7,10 @@ from pathlib import Path
 import bpy
 
 from ..core.io.micromesh_import import MicromeshFileError, is_micromesh_file, read_micromesh
+from ..core.io.gltf import GltfError
+from ..core.io.gltf_check import check_gltf
 from ..core.io.mesh_files import read_mesh
-from . import bl_mesh
+from . import bl_mesh, importer_output
 
 
 FILE_FRAME = "micromesh_file_frame"   # set on sources whose coordinates are the file's own
@@ -20,7 +22,7 @@ class SourceError(ValueError):
 
 def export_y_up(source) -> bool:
     """Whether an export of ``source``'s result turns Blender's Z-up into glTF's Y-up: not for
-    sources read with their file's own coordinates (PLY, OBJ, micro-mesh glTF), so results
+    sources read with their file's own coordinates (PLY, OBJ, STL, micro-mesh glTF), so results
     line up with the input file; yes for everything in Blender's frame (the demo, ``.blend``,
     and what Blender's importers turned Z-up), as Blender's own glTF exporter does."""
     return not bool(source.get(FILE_FRAME, False))
@@ -51,19 +53,27 @@ def _apply_modifiers(obj) -> None:
         bpy.data.meshes.remove(old)
 
 
-def import_source(path: Path):
+MESH_FILES = (".ply", ".obj", ".stl")                 # read by core.io.mesh_files
+USD_FILES = (".usd", ".usda", ".usdc", ".usdz")
+
+
+def import_source(path: Path, verbose: bool = False):
     """Import ``path`` into the (empty) scene; returns one mesh object named after the file.
 
-    PLY and OBJ go through our own reader (``core.io.mesh_files``), which refuses NaN or infinite
-    coordinates, face indices out of range and files cut short: Blender's importers "repair"
-    those silently (NaN becomes 0, faces are dropped); coordinates stay as in the file (no axis
-    conversion), so results line up with the input file. A micro-mesh glTF (one with
-    ``NV_displacement_micromap``) is read by ``core.io`` and its tessellation is the source.
-    The other formats use Blender's importers; what they produce is checked by the
-    construction (``check_reference``)."""
+    PLY, OBJ and STL go through our own reader (``core.io.mesh_files``), which refuses NaN or
+    infinite coordinates, face indices out of range and files cut short: Blender's importers
+    "repair" those silently (NaN becomes 0, faces are dropped); coordinates stay as in the
+    file (no axis conversion), so results line up with the input file. A micro-mesh glTF (one
+    with ``NV_displacement_micromap``) is read by ``core.io`` and its tessellation is the
+    source. Such a mesh far from the origin is stored relative to a point near its centre,
+    the object's location (``bl_mesh.placed_mesh``): Blender's float32 coordinates keep its
+    detail and ``bl_mesh.mesh_to_arrays`` adds the two in float64. The other formats use
+    Blender's importers (a glTF checked first by ``core.io.gltf_check``, which names what is
+    wrong where the importer would fail or turn infinite positions into zeros); what they
+    print stays off the terminal unless ``verbose``, and a failure is said in one line."""
     ext = path.suffix.lower()
     mesh = None
-    if ext in (".ply", ".obj"):
+    if ext in MESH_FILES:
         mesh = read_mesh(path)               # MeshFileError (a ValueError) names the problem
     elif ext in (".glb", ".gltf") and is_micromesh_file(path):
         try:                                 # the micro-mesh's own surface is the reference
@@ -71,25 +81,34 @@ def import_source(path: Path):
         except MicromeshFileError as e:
             raise SourceError(str(e)) from None
         mesh = tess.to_trimesh()
+    elif ext in (".glb", ".gltf"):
+        try:
+            check_gltf(path)
+        except GltfError as e:
+            raise SourceError(str(e)) from None
     if mesh is not None:
-        obj = bpy.data.objects.new(path.stem, bl_mesh.arrays_to_mesh(path.stem, mesh.vertices,
-                                                                      mesh.faces))
+        data, origin = bl_mesh.placed_mesh(path.stem, mesh.vertices, mesh.faces)
+        obj = bpy.data.objects.new(path.stem, data)
         bpy.context.scene.collection.objects.link(obj)
+        bl_mesh.place(obj, origin)
         obj[FILE_FRAME] = True
         return obj
     before = set(bpy.data.objects)
     try:
-        if ext in (".glb", ".gltf"):
-            _enable("io_scene_gltf2")
-            bpy.ops.import_scene.gltf(filepath=str(path))
-        elif ext == ".fbx":
-            _enable("io_scene_fbx")
-            bpy.ops.import_scene.fbx(filepath=str(path))
-        elif ext == ".blend":
-            bpy.ops.wm.open_mainfile(filepath=str(path))
-            before = set()
+        with importer_output.quiet(show=verbose):
+            if ext in (".glb", ".gltf"):
+                _enable("io_scene_gltf2")
+                bpy.ops.import_scene.gltf(filepath=str(path))
+            elif ext == ".fbx":
+                _enable("io_scene_fbx")
+                bpy.ops.import_scene.fbx(filepath=str(path))
+            elif ext in USD_FILES:
+                bpy.ops.wm.usd_import(filepath=str(path))
+            elif ext == ".blend":
+                bpy.ops.wm.open_mainfile(filepath=str(path))
+                before = set()
     except RuntimeError as e:
-        raise SourceError(f"cannot read: {str(e).strip().splitlines()[-1]}") from None
+        raise SourceError(f"cannot read: {importer_output.failure(e)}") from None
     meshes = [o for o in bpy.data.objects if o.type == "MESH" and o not in before
               and not o.get("micromesh_data") and o.micromesh_source is None]
     meshes = [o for o in meshes if len(o.data.polygons)]

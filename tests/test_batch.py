@@ -330,3 +330,164 @@ def test_maps_on_the_uvs_a_decimated_base_inherits(tmp_path):
     xy = xy.reshape(-1, 3)[corners, :2]
     np.testing.assert_allclose(got.reshape(-1, 2), (xy + 1.0) / 2.0, atol=1e-5)
     bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
+def _write_stl(path, vertices, faces, ascii: bool) -> None:
+    tri = vertices[faces]
+    if ascii:
+        lines = ["solid ball"]
+        for t in tri:
+            lines += ["facet normal 0 0 0", "outer loop"]
+            lines += [f"vertex {x!r} {y!r} {z!r}" for x, y, z in t] + ["endloop", "endfacet"]
+        path.write_text("\n".join(lines + ["endsolid ball", ""]))
+        return
+    rec = np.zeros(len(tri), dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
+    rec["v"] = tri
+    path.write_bytes(b"solid ball: a binary STL".ljust(80) + np.uint32(len(tri)).tobytes()
+                     + rec.tobytes())
+
+
+def test_stl_and_usd_inputs(inputs, tmp_path):
+    """Binary and ASCII STL (read by core.io, the file's own coordinates) and USD (Blender's
+    importer; the file made by Blender's own exporter) build like the PLY they came from."""
+    folder, out = tmp_path / "in", tmp_path / "out"
+    folder.mkdir()
+    ball = read_ply_mesh(inputs / "ball.ply")
+    _write_stl(folder / "binary.stl", ball.vertices, ball.faces, ascii=False)
+    _write_stl(folder / "ascii.stl", ball.vertices, ball.faces, ascii=True)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=4, location=(0.0, 0.0, 3.0))
+    assert bpy.ops.wm.usd_export(filepath=str(folder / "ball.usdc")) == {"FINISHED"}
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    r = run_batch("--input", folder, "--output", out, *QUICK)
+    assert r.returncode == 0 and "done: 3/3" in r.stdout, r.stdout + r.stderr
+    assert "USD" not in r.stdout + r.stderr                 # the importer's own lines
+    from micromesh_path import ensure_package
+
+    ensure_package()
+    from micromesh.core.io.micromesh_import import read_micromesh
+
+    for name in ("binary", "ascii", "ball"):
+        m = json.loads((out / f"{name}.metrics.json").read_text())["metrics"]
+        assert m["reference_faces"] == ball.n_faces and m["micro_triangles"] == 4 * m["base_faces"]
+        base = read_micromesh(out / f"{name}.gltf").micromesh().base.vertices
+        # on the unit sphere: STL in its own coordinates, USD moved by 3 along Blender's Z,
+        # exported Y-up (Blender's frame, as Blender's glTF exporter writes it)
+        centre = (0.0, 0.0, 0.0) if name != "ball" else (0.0, 3.0, 0.0)
+        r = np.linalg.norm(base - centre, axis=1)            # a 40-face base: chords inside
+        assert 0.9 < r.min() and r.max() < 1.02, name
+
+
+def read_ply_mesh(path):
+    from micromesh_path import ensure_package
+
+    ensure_package()
+    from micromesh.core.io.mesh_files import read_mesh
+
+    return read_mesh(path)
+
+
+def _gltf(path, vertices, faces, edit=None) -> None:
+    """A plain glTF (``.glb``, or ``.gltf`` + ``.bin``) of one mesh; ``edit(doc)`` first."""
+    from micromesh_path import ensure_package
+
+    ensure_package()
+    from micromesh.core.io.gltf import Builder, pack_glb
+
+    b = Builder()
+    pos = b.accessor(np.asarray(vertices, np.float32), "<f4", "POSITION", 34962)
+    idx = b.accessor(np.asarray(faces, np.uint32).reshape(-1), "<u4", "indices", 34963)
+    glb = path.suffix == ".glb"
+    doc, blob = b.finish(None if glb else path.with_suffix(".bin").name)
+    doc.update(meshes=[{"primitives": [{"attributes": {"POSITION": pos}, "indices": idx}]}],
+               nodes=[{"mesh": 0}], scenes=[{"nodes": [0]}], scene=0)
+    if edit:
+        edit(doc)
+    if glb:
+        path.write_bytes(pack_glb(doc, blob))
+    else:
+        path.with_suffix(".bin").write_bytes(blob)
+        path.write_text(json.dumps(doc))
+
+
+def test_broken_and_non_finite_gltf_are_refused_in_one_line(inputs, tmp_path):
+    """Infinite positions (Blender's importer makes them zeros), a face index out of range,
+    a missing buffer file, JSON that does not parse, a value that is not a number: each
+    refused in one line naming the cause, none of Blender's importer output or tracebacks;
+    exit 1 with the good input done."""
+    ball = read_ply_mesh(inputs / "ball.ply")
+    v, f = ball.vertices, ball.faces
+    folder = tmp_path / "in"
+    folder.mkdir()
+    _gltf(folder / "inf.glb", np.full_like(v, np.inf), f)
+    _gltf(folder / "index.glb", v, np.where(np.arange(len(f))[:, None] == 3, len(v) + 9, f))
+    _gltf(folder / "nobuffer.gltf", v, f)
+    (folder / "nobuffer.bin").unlink()
+    (folder / "notjson.gltf").write_text('{"asset": {"version": "2.0"}, "meshes": [ nope ]')
+
+    def count(doc):
+        doc["accessors"][0]["count"] = "many"
+    _gltf(folder / "value.gltf", v, f, count)
+    _gltf(folder / "good.glb", v, f)
+    r = run_batch("--input", folder, "--output", tmp_path / "out", *QUICK)
+    assert r.returncode == 1 and "done: 1/6" in r.stdout, r.stdout + r.stderr
+    lines = _error_lines(r.stderr)
+    assert len(lines) == 5 and r.stderr.strip().splitlines() == lines, r.stderr
+    want = {"inf.glb": f"{len(v)} of {len(v)} vertices have NaN or infinite positions",
+            "index.glb": f"face index {len(v) + 9} is out of range ({len(v)} vertices)",
+            "nobuffer.gltf": "the file it names, nobuffer.bin, is missing",
+            "notjson.gltf": "not valid glTF JSON",
+            "value.gltf": "not valid glTF (ValueError"}
+    for name, reason in want.items():
+        assert sum(f" {name}: " in ln and reason in ln for ln in lines) == 1, (name, lines)
+    assert "Traceback" not in r.stdout and "INFO" not in r.stdout      # the importer's lines
+    verbose = run_batch("--input", folder / "good.glb", "--output", tmp_path / "v", *QUICK,
+                        "--verbose")
+    assert verbose.returncode == 0 and "glTF import finished" in verbose.stdout + verbose.stderr
+
+
+def test_far_from_the_origin_builds_as_at_the_origin(tmp_path):
+    """A sphere at (1e6, -1e6, 1e6) in a double-precision PLY builds the base it builds at the
+    origin (float32 in Blender's meshes blurred it to 0.06 there); the exports and the
+    objects in the .blend lie where the input does, to 1e-4 of its diagonal."""
+    from micromesh_path import ensure_package
+
+    ensure_package()
+    from micromesh.core.io.mesh_files import read_mesh, write_ply
+    from micromesh.core.io.micromesh_import import read_micromesh
+    from micromesh.core.primitives import noisy_sphere
+
+    offset = np.array([1e6, -1e6, 1e6])
+    v, f = noisy_sphere(2000)
+    folder = tmp_path / "in"
+    folder.mkdir()
+    write_ply(folder / "near.ply", v, f, double=True)
+    write_ply(folder / "far.ply", v + offset, f, double=True)
+    out = tmp_path / "out"
+    r = run_batch("--input", folder, "--output", out, "--preset", "fast", "--method",
+                  "projection", "--level", "1", "--ply")
+    assert r.returncode == 0, r.stdout + r.stderr
+    m = {n: json.loads((out / f"{n}.metrics.json").read_text())["metrics"] for n in ("near", "far")}
+    assert abs(m["far"]["base_faces"] - m["near"]["base_faces"]) <= 0.03 * m["near"]["base_faces"]
+    diag = TriMesh(v, f).bbox_diagonal
+    near, far = (read_micromesh(out / f"{n}.gltf").micromesh() for n in ("near", "far"))
+    if near.base.n_vertices == far.base.n_vertices:
+        assert np.abs(far.base.vertices - offset - near.base.vertices).max() < 1e-4 * diag
+    from micromesh.core.bake import nearest_points
+
+    ref = read_mesh(folder / "far.ply")
+    for points in (far.base.vertices, read_mesh(out / "far_micromesh.ply").vertices):
+        p, _, _ = nearest_points(points, ref)
+        assert np.linalg.norm(p - points, axis=1).max() < 0.02 * diag     # near the input
+    np.testing.assert_allclose(read_mesh(out / "far_micromesh.ply").vertices - offset,
+                               read_mesh(out / "near_micromesh.ply").vertices, atol=1e-4 * diag)
+    bpy.ops.wm.open_mainfile(filepath=str(out / "far.blend"))
+    for name in ("far", "far_base", "far_micromesh"):
+        obj = bpy.data.objects[name]
+        co = np.empty(3 * len(obj.data.vertices), np.float32)
+        obj.data.vertices.foreach_get("co", co)
+        assert np.abs(co).max() < diag, name                         # centred data
+        world = co.reshape(-1, 3).astype(np.float64) + np.array(obj.matrix_world.translation)
+        p, _, _ = nearest_points(world, ref)
+        assert np.linalg.norm(p - world, axis=1).max() < 0.02 * diag, name
+    bpy.ops.wm.read_factory_settings(use_empty=True)
