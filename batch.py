@@ -6,13 +6,15 @@ icosphere displaced by Blender's procedural textures, made at run time), decimat
 within a storage budget. With ``--input`` (one file or a folder of .ply / .obj / .stl / .glb /
 .gltf / .fbx / .usd / .usda / .usdc / .usdz / .blend; a micro-mesh glTF is read as its
 tessellation) it does the same per input: the same workflow as the add-on's panel
-(``operators.pipeline``). Per input NAME it writes ``NAME.blend`` (holding ``NAME_micromesh`` and ``NAME_base``), the micro-mesh for other tools
-(``NAME.gltf`` + ``.bin`` + ``.bary``; or ``--export glb``), with ``--maps RES`` height and
-normal maps (``NAME_maps`` in the .blend, ``NAME_height.exr``, ``NAME_normal.png``,
-``NAME_base.gltf``), the run report (``NAME.report.png``, ``NAME.report.json``),
-``NAME.metrics.json`` and with ``--ply`` ``NAME_micromesh.ply``: NAME is the
-input's stem (``stem_ext`` where two inputs share one), the files appear together when the input
-is done (the metrics file last), and existing results are kept unless ``--force``.
+(``operators.pipeline``). Per input NAME it writes ``NAME.blend`` (holding ``NAME_micromesh``
+and ``NAME_base``), the micro-mesh for other tools (``NAME.gltf`` + ``.bin`` + ``.bary``; or
+``--export glb``), with ``--maps RES`` height and normal maps (``NAME_maps`` in the .blend,
+``NAME_height.exr``, ``NAME_normal.png``, ``NAME_base.gltf``), the run report
+(``NAME.report.png``, ``NAME.report.json``), ``NAME.metrics.json`` and with ``--ply``
+``NAME_micromesh.ply``: NAME is the input's stem (``stem_ext`` where two inputs share one),
+the files appear together when the input is done (the metrics file last), and existing
+results are kept unless ``--force``. What Blender's importers print is shown with
+``--verbose`` only.
 """
 from __future__ import annotations
 

@@ -146,7 +146,8 @@ def test_stl_is_read_as_the_triangle_soup_it_lists(tmp_path, kind):
     elif kind == "ascii":
         p.write_text(_stl_ascii(CUBE_TRIS))
     else:
-        p.write_text(_stl_ascii(CUBE_TRIS[:5], "a", "\r\n") + _stl_ascii(CUBE_TRIS[5:], "b", "\r\n"))
+        p.write_text(_stl_ascii(CUBE_TRIS[:5], "a", "\r\n")
+                     + _stl_ascii(CUBE_TRIS[5:], "b", "\r\n"))
     m = read_mesh(p)
     assert np.array_equal(m.vertices, CUBE_TRIS.reshape(-1, 3))
     assert np.array_equal(m.faces, np.arange(36).reshape(12, 3))

@@ -3,9 +3,9 @@ file lists them; the construction welds coincident vertices, not this reader).
 
 Binary or ASCII is told by the size first: a binary file is exactly 84 + 50 n bytes for the n
 triangles its header declares, and many binary files begin with "solid" too. A file of another
-size that begins with "solid" and holds no zero byte is read as ASCII. What the file holds is checked: a size that
-does not match, a facet without three vertices, a bad number, NaN or infinite coordinates
-and no triangles at all are refused with one line (``MeshFileError``).
+size that begins with "solid" and holds no zero byte is read as ASCII. What the file holds is
+checked: a size that does not match, a facet without three vertices, a bad number, NaN or
+infinite coordinates and no triangles at all are refused with one line (``MeshFileError``).
 """
 from __future__ import annotations
 
