@@ -1,11 +1,15 @@
 """A micro-mesh to files other tools read: glTF 2.0 (``.gltf`` + ``.bin`` + ``.bary``, or one
-``.glb`` with the ``.bary`` in a buffer view) with ``NV_micromaps``,
-``NV_displacement_micromap`` and ``NV_micromap_tooling``.
+``.glb`` with the ``.bary`` in a buffer view) with ``NV_micromaps`` and
+``NV_displacement_micromap``.
 
 Identity triangle mapping (no ``mapIndices``, ``mapOffset`` 0), one group, one value format per
-file: what NVIDIA's reference reader supports. Values are stored in [0, 1] between tight
-per-vertex direction bounds (``directionBounds`` accessor and the ``.bary`` mesh property), so a
-micro-vertex is ``lerp(P + D·bias) + lerp(D·scale)·value``.
+file: what NVIDIA's reference reader supports. Values are stored in [0, 1] between per-vertex
+direction bounds folded into the positions and directions, as micromesh-tools writes them
+(``core.bounds.baked``): a micro-vertex is ``lerp(P + D·bias) + lerp(D·scale)·value``, the
+same surface a ``directionBounds`` accessor would give, without one. Each datum is written once:
+directions and edge flags as accessors (not again as ``.bary`` mesh properties), the levels in
+the ``.bary``'s triangle records, indices as u16 where they fit. ``core.io.file_size`` counts
+the bytes.
 """
 from __future__ import annotations
 
@@ -16,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bounds import DirectionBounds, normalized_values, tight_bounds
+from ..bounds import DirectionBounds, baked, normalized_values, tight_bounds
 from ..float32_origin import node_translation, relative
 from ..micromesh import MicroMesh
 from ..level_grid import BUILD_MAX_LEVEL
@@ -24,10 +28,11 @@ from ..mesh_levels import edge_flags
 from .bary import (LAYOUT_BIRD, LAYOUT_UMAJOR, R11_UNORM_PACK16, R11_UNORM_PACKED_ALIGN32,
                    BaryFile, Group, TRIANGLE, encode)
 from .bary_values import FORMAT_NAMES, encode_values, quantize11
+from .file_size import index_bytes
 from .gltf import Builder, pack_glb
 
 LAYOUTS = {"bird": LAYOUT_BIRD, "umajor": LAYOUT_UMAJOR}
-EXTENSIONS = ["NV_micromaps", "NV_displacement_micromap", "NV_micromap_tooling"]
+EXTENSIONS = ["NV_micromaps", "NV_displacement_micromap"]
 # Blender's Z-up to glTF's Y-up, as Blender's own glTF exporter does: (x, y, z) → (x, z, −y).
 Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
@@ -47,7 +52,10 @@ class ExportReport:
 def stored_values(mm: MicroMesh, bounds: DirectionBounds, value_format: str) -> np.ndarray:
     """(n,) the value each micro-vertex is stored as, decoded back to [0, 1] (11-bit values
     rounded, float values as float32)."""
-    t = normalized_values(mm, bounds)
+    return _stored(normalized_values(mm, bounds), value_format)
+
+
+def _stored(t: np.ndarray, value_format: str) -> np.ndarray:
     if value_format == "r11":
         return quantize11(t) / 2047.0
     return t.astype(np.float32).astype(np.float64)
@@ -71,13 +79,13 @@ def quantization_error(mm: MicroMesh, bounds: DirectionBounds | None = None,
     return float(err.max(initial=0.0)) / diag, float(np.sqrt((err ** 2).mean())) / diag
 
 
-def to_bary(mm: MicroMesh, bounds: DirectionBounds, value_format: str = "r11",
-            layout: str = "bird") -> BaryFile:
-    """The ``.bary`` of a micro-mesh: values, one group, triangles, per-triangle min/max and
-    the mesh properties (directions, direction bounds, edge flags)."""
+def to_bary(mm: MicroMesh, value_format: str = "r11", layout: str = "bird") -> BaryFile:
+    """The ``.bary`` of a micro-mesh whose bounds are folded in (``core.bounds.baked``: its
+    displacements are the values, in [0, 1]): values, one group, triangles and per-triangle
+    min/max (the directions and flags are the glTF's accessors)."""
     fmt = FORMAT_NAMES[value_format]
     ptr, _ = mm.face_values(layout)
-    values = stored_values(mm, bounds, value_format)
+    values = _stored(np.clip(mm.displacements, 0.0, 1.0), value_format)
     _, per_face = mm.with_displacements(values).face_values(layout)
     payload, offsets, count, size = encode_values(fmt, mm.levels, ptr, per_face)
     tri = np.zeros(len(mm.levels), TRIANGLE)
@@ -91,10 +99,7 @@ def to_bary(mm: MicroMesh, bounds: DirectionBounds, value_format: str = "r11",
         minmax, mm_fmt = np.stack([lo, hi], 1).astype("<f4").tobytes(), fmt
     group = Group(0, len(mm.levels), 0, count, int(mm.levels.min(initial=0)),
                   int(mm.levels.max(initial=0)))
-    return BaryFile(fmt, LAYOUTS[layout], count, size, payload, [group], tri, minmax, mm_fmt,
-                    mm.directions.astype(np.float32),
-                    np.stack([bounds.bias, bounds.scale], 1).astype(np.float32),
-                    edge_flags(mm.base, mm.levels))
+    return BaryFile(fmt, LAYOUTS[layout], count, size, payload, [group], tri, minmax, mm_fmt)
 
 
 def micromesh_files(path: str | os.PathLike, mm: MicroMesh,
@@ -115,11 +120,12 @@ def micromesh_files(path: str | os.PathLike, mm: MicroMesh,
                           "NVIDIA's reader and the ray-tracing hardware stop there")
     b = tight_bounds(mm) if bounds is None else bounds
     qmax, qrms = quantization_error(mm, b, value_format)
+    mm = baked(mm, b)                  # the bounds folded in: the values, in [0, 1]
     if y_up:
         mm = mm.transformed(Y_UP)
-    bary = encode(to_bary(mm, b, value_format, layout))
+    bary = encode(to_bary(mm, value_format, layout))
     glb = path.suffix.lower() == ".glb"
-    doc, blob = _document(mm, b, path, bary if glb else None)
+    doc, blob = _document(mm, path, bary if glb else None)
     files = [(path, pack_glb(doc, blob))] if glb else [
         (path.with_suffix(".bary"), bary), (path.with_suffix(".bin"), blob),
         (path, json.dumps(doc, indent=1).encode())]
@@ -135,26 +141,24 @@ def write_micromesh(path: str | os.PathLike, mm: MicroMesh, bounds: DirectionBou
     return report
 
 
-def _document(mm: MicroMesh, bounds: DirectionBounds, path: Path, embedded: bytes | None):
+def _document(mm: MicroMesh, path: Path, embedded: bytes | None):
     g = Builder()
     base = mm.base
-    idx = g.accessor(base.faces.reshape(-1), "<u4", "indices", target=34963)
+    idx = g.accessor(base.faces.reshape(-1), f"<u{index_bytes(base.n_vertices)}", "indices",
+                     target=34963)
     local, origin = relative(base.vertices)    # far from the origin: a node translation
     pos = g.accessor(local, "<f4", "positions", target=34962, bounds=True)
     nrm = g.accessor(_unit(base.vertex_normals), "<f4", "normals", target=34962)
     dirs = g.accessor(mm.directions, "<f4", "directions")
-    dbounds = g.accessor(np.stack([bounds.bias, bounds.scale], 1), "<f4", "direction_bounds")
     flags = g.accessor(edge_flags(base, mm.levels), "u1", "primitive_flags")
-    levels = g.accessor(mm.levels, "u1", "subdivision_levels")
     micromap = {"uri": path.with_suffix(".bary").name}
     if embedded is not None:
         micromap = {"bufferView": g.view(embedded, "micromap"), "mimeType": "model/vnd.bary"}
     doc, blob = g.finish(None if embedded is not None else path.with_suffix(".bin").name)
-    common = {"directions": dirs, "directionBounds": dbounds, "primitiveFlags": flags}
     doc["meshes"] = [{"name": path.stem, "primitives": [{
         "attributes": {"POSITION": pos, "NORMAL": nrm}, "indices": idx, "mode": 4,
-        "extensions": {"NV_displacement_micromap": {"micromap": 0, **common},
-                       "NV_micromap_tooling": {**common, "subdivisionLevels": levels}}}]}]
+        "extensions": {"NV_displacement_micromap": {"micromap": 0, "directions": dirs,
+                                                    "primitiveFlags": flags}}}]}]
     doc["nodes"] = [{"mesh": 0, "name": path.stem, **node_translation(origin)}]
     doc["scenes"], doc["scene"] = [{"nodes": [0]}], 0
     doc["extensions"] = {"NV_micromaps": {"micromaps": [micromap]}}

@@ -1,0 +1,85 @@
+"""The bytes micro-mesh files take on disk: ours as the exporter writes them, micromesh-tools'
+as its files hold them."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from core.io.file_size import micromesh_file_bytes, mmt_file_bytes
+from core.io.micromesh_export import write_micromesh
+from core.io.micromesh_import import read_micromesh
+from core.mesh import TriMesh
+from core.mesh_levels import balance_levels
+from core.micromesh import MicroMesh
+from core.primitives import icosphere
+
+from test_micromesh_files import BASELINES
+
+
+def _micromesh(base: TriMesh, seed: int, max_level: int) -> MicroMesh:
+    rng = np.random.default_rng(seed)
+    mm = MicroMesh.flat(base, balance_levels(base, rng.integers(0, max_level + 1, base.n_faces)))
+    p = mm.micro_vertex_base_positions()
+    return mm.with_displacements(0.05 * np.sin(5 * p[:, 0]) * np.cos(3 * p[:, 1]))
+
+
+def _on_disk(path) -> int:
+    return path.with_suffix(".bin").stat().st_size + path.with_suffix(".bary").stat().st_size
+
+
+@pytest.mark.parametrize("subdivisions, drop, max_level, fmt", [
+    (1, 0, 5, "r11"), (1, 1, 4, "float"), (2, 3, 3, "r11"), (2, 2, 2, "float")])
+def test_the_count_is_the_bytes_the_exporter_writes(tmp_path, subdivisions, drop, max_level,
+                                                     fmt):
+    """Face counts of every remainder by 4 (the u8 flags and u16 indices padded; faces
+    dropped leave an open surface), every level up to 5, both value formats."""
+    v, f = icosphere(subdivisions)
+    mm = _micromesh(TriMesh(v, f[:len(f) - drop]), subdivisions, max_level)
+    write_micromesh(tmp_path / "m.gltf", mm, value_format=fmt)
+    size = micromesh_file_bytes(mm.levels, mm.base.n_vertices, fmt)
+    assert size["bin"] == (tmp_path / "m.bin").stat().st_size
+    assert size["bary"] == (tmp_path / "m.bary").stat().st_size
+    assert size["total"] == _on_disk(tmp_path / "m.gltf")
+
+
+@pytest.mark.parametrize("n_vertices, width", [(65535, 2), (65536, 4)])
+def test_indices_are_u16_while_they_fit(tmp_path, n_vertices, width):
+    """glTF reserves 65535 in u16 indices: up to 65,535 vertices (indices 0..65534) they are
+    u16, from 65,536 u32; the count follows, and the file reads back."""
+    tri = TriMesh(*icosphere(1))
+    far = np.full((n_vertices - tri.n_vertices, 3), 5.0) + np.arange(n_vertices - 12)[:, None]
+    base = TriMesh(np.vstack([far, tri.vertices]), tri.faces + len(far))   # index 65534 / 65535
+    mm = _micromesh(base, 0, 2)
+    write_micromesh(tmp_path / "m.gltf", mm)
+    doc = json.loads((tmp_path / "m.gltf").read_text())
+    prim = doc["meshes"][0]["primitives"][0]
+    assert doc["accessors"][prim["indices"]]["componentType"] == {2: 5123, 4: 5125}[width]
+    assert micromesh_file_bytes(mm.levels, n_vertices)["total"] == _on_disk(tmp_path / "m.gltf")
+    np.testing.assert_array_equal(read_micromesh(tmp_path / "m.gltf").faces, base.faces)
+
+
+def test_each_datum_is_written_once(tmp_path):
+    """Directions and flags as accessors only, no direction bounds (folded in), no level view
+    (the .bary's triangle records hold the levels), four .bary properties."""
+    from core.io import bary as B
+    mm = _micromesh(TriMesh(*icosphere(1)), 3, 3)
+    write_micromesh(tmp_path / "m.gltf", mm)
+    doc = json.loads((tmp_path / "m.gltf").read_text())
+    ext = doc["meshes"][0]["primitives"][0]["extensions"]
+    assert list(ext) == ["NV_displacement_micromap"]
+    assert set(ext["NV_displacement_micromap"]) == {"micromap", "directions", "primitiveFlags"}
+    assert sorted(v["name"] for v in doc["bufferViews"]) == sorted(
+        ["indices", "positions", "normals", "directions", "primitive_flags"])
+    bf = B.decode((tmp_path / "m.bary").read_bytes())
+    assert bf.directions is None and bf.direction_bounds is None and bf.triangle_flags is None
+    assert bf.minmax is not None and bf.extra == {}
+
+
+@pytest.mark.skipif(not BASELINES, reason="../shared/baselines (micromesh-tools' outputs) absent")
+@pytest.mark.parametrize("path", BASELINES, ids=lambda p: p.parent.name)
+def test_micromesh_tools_files_take_what_the_count_says(path):
+    f = read_micromesh(path)
+    on_disk = path.with_suffix(".bin").stat().st_size + path.with_suffix(".bary").stat().st_size
+    assert mmt_file_bytes(f.levels, len(f.positions)) == on_disk
