@@ -5,8 +5,9 @@ For each mesh of ../shared/meshes it runs ``python batch.py --input MESH --outpu
 (plus the row's ``--set`` overrides, if any) in a subprocess, exactly as a user would, then
 ``../shared/judge/judge.py`` on the micro-mesh file it wrote (``NAME.gltf`` + ``.bary``) and
 on micromesh-tools' (``../shared/baselines/NAME/out_NAME.gltf``; judged once and cached): PSNR,
-geometric error, shell volume (tight), storage (micromesh-tools' ``out_size`` formula), base
-isotropy and cracks are the judge's for both. ``file_vs_ply`` is the judge's PSNR of our file
+geometric error, shell volume (tight), storage (micromesh-tools' ``out_size`` formula: ``storage``;
+the ``.bin`` + ``.bary`` files on disk: ``disk``), base isotropy and cracks are the judge's for
+both. ``file_vs_ply`` is the judge's PSNR of our file
 minus that of our float tessellation (``--ply``): what the 11-bit file loses. ``--staged`` adds our staged baseline
 (``--method projection``, level 3 uniform, on the same default base) as the simplest
 alternative.
@@ -64,6 +65,7 @@ def theirs(name: str, python: str, cache: Path) -> dict:
               cache / f"theirs_{name}.json")
     return {"psnr": j["render"]["psnr_full"], "geom_err": j["geom_error"]["ref_to_mm"]["avg"],
             "shell": j["shell"]["shell_volume_tight"], "bytes": j["storage"]["mmt_formula_bytes"],
+            "disk": j["storage"]["disk_bytes_bin_bary"],
             "iso_base": j["isotropy"]["iso_base"], "cracks": j["watertightness"]["crack_edges"],
             "base_faces": j["counts"]["base_faces"], "micro_faces": j["counts"]["micro_faces_full"]}
 
@@ -81,6 +83,7 @@ def ours(name: str, label: str, python: str, out: Path, overrides: list[str],
     return {"psnr": j["render"]["psnr_full"], "psnr_ply": jp["render"]["psnr_full"],
             "geom_err": j["geom_error"]["ref_to_mm"]["avg"],
             "shell": j["shell"]["shell_volume_tight"], "bytes": j["storage"]["mmt_formula_bytes"],
+            "disk": j["storage"]["disk_bytes_bin_bary"],
             "iso_base": j["isotropy"]["iso_base"], "cracks": j["watertightness"]["crack_edges"],
             "base_faces": j["counts"]["base_faces"], "micro_faces": j["counts"]["micro_faces_full"],
             "micro_faces_ours": m["micro_triangles"], "time_s": round(wall, 1),
@@ -119,6 +122,7 @@ def main() -> None:
                    "psnr": round(o["psnr"], 2), "psnr_mmt": round(t["psnr"], 2),
                    "file_vs_ply": round(o["psnr"] - o["psnr_ply"], 2),
                    "storage": round(o["bytes"] / t["bytes"], 3),
+                   "disk": round(o["disk"] / t["disk"], 3),
                    "shell": round(o["shell"] / t["shell"], 3),
                    "iso_base": round(o["iso_base"], 3), "iso_mmt": round(t["iso_base"], 3),
                    "geom_err": round(o["geom_err"] / t["geom_err"], 3),
@@ -129,10 +133,11 @@ def main() -> None:
             records.append({**rec, "ours": o, "theirs": t})
             print(rec, flush=True)
             write_json(args.json, records)
-    cols = ["mesh", "row", "dpsnr", "psnr", "psnr_mmt", "file_vs_ply", "storage", "shell", "iso_base", "iso_mmt",
+    cols = ["mesh", "row", "dpsnr", "psnr", "psnr_mmt", "file_vs_ply", "storage", "disk", "shell",
+            "iso_base", "iso_mmt",
             "geom_err", "cracks", "topology", "base_f", "base_f_mmt", "time_s"]
-    print_table(rows, cols, title="ours vs micromesh-tools (judge PSNR; storage, shell and "
-                                  "geometric error as ours / theirs)")
+    print_table(rows, cols, title="ours vs micromesh-tools (judge PSNR; storage (formula), disk "
+                                  "(.bin + .bary), shell and geometric error as ours / theirs)")
     for lab in dict.fromkeys(r["row"] for r in rows):
         d = np.array([r["dpsnr"] for r in rows if r["row"] == lab])
         print(f"{lab}: mean ΔPSNR {d.mean():+.2f} dB, worst {d.min():+.2f} dB over {len(d)} meshes")

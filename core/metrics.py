@@ -1,5 +1,6 @@
 """How constructions are measured (method §7): PSNR, shell volume, geometric error, isotropy,
-storage of the 11-bit packed encoding, cracks, and a per-phase wall-clock timer.
+storage of the 11-bit packed encoding (micromesh-tools' formula; the files' bytes on disk are
+``core.io.file_size``'s), cracks, and a per-phase wall-clock timer.
 """
 from __future__ import annotations
 
@@ -73,32 +74,6 @@ def values_per_triangle(level: np.ndarray | int) -> np.ndarray:
 def packed11_block_bytes(level: np.ndarray | int) -> np.ndarray:
     """Bytes of one triangle's 11-bit packed values (eR11_unorm_packed_align32)."""
     return (11 * values_per_triangle(level) + 31) // 32 * 4
-
-
-def _align4(n: int) -> int:
-    return (n + 3) // 4 * 4
-
-
-def storage_bytes(levels: np.ndarray, n_base_vertices: int) -> dict[str, int]:
-    """Bytes of a micro-mesh as .bary (11-bit packed values, triangles, min/max, mesh
-    directions, direction bounds, triangle flags) plus the glTF buffers (float32 positions,
-    u32 indices, u8 subdivision levels). Headers and property infos included."""
-    lv = np.asarray(levels, dtype=np.int64)
-    m = len(lv)
-    values = int(packed11_block_bytes(lv).sum())
-    parts = {
-        "values": 24 + values,                       # values info + payload
-        "groups": 56,
-        "triangles": 8 * m,
-        "minmax": 16 + _align4(2 * 2 * m),           # element info + u16 min/max per triangle
-        "directions": 16 + 12 * n_base_vertices,
-        "direction_bounds": 16 + 8 * n_base_vertices,
-        "triangle_flags": 16 + _align4(m),
-    }
-    bary = 40 + 64 * len(parts) + sum(_align4(v) for v in parts.values())
-    gltf = 12 * n_base_vertices + 12 * m + _align4(m)
-    return {"bary": int(bary), "gltf_buffers": int(gltf), "values": values,
-            "total": int(bary + gltf)}
 
 
 def mmt_formula_bytes(levels: np.ndarray, n_base_vertices: int) -> int:

@@ -14,7 +14,7 @@ ROWS = [("psnr", "PSNR (dB)", "{:.2f}"), ("shell_volume", "shell volume (unit sp
         ("geom_err", "geometric error (/ diag.)", "{:.3g}"),
         ("iso_base", "isotropy, base", "{:.3f}"), ("iso_micro", "isotropy, micro", "{:.3f}"),
         ("base_faces", "base triangles", "{:,}"), ("micro_triangles", "micro-triangles", "{:,}"),
-        ("bytes", "bytes (.bary + glTF)", "{:,}"), ("compression", "input mesh / bytes", "{:.1f}x"),
+        ("bytes", "bytes (.bin + .bary)", "{:,}"), ("compression", "input mesh / bytes", "{:.1f}x"),
         ("quantization_max", "11-bit error, max (/ diag.)", "{:.2g}"),
         ("quantization_rms", "11-bit error, RMS (/ diag.)", "{:.2g}"), ("cracks", "cracks", "{}"),
         ("time_s", "time (s)", "{:.1f}")]

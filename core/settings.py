@@ -57,12 +57,12 @@ class ConstructSettings:
     lod_criterion: str = "visual"    # "visual" or "chamfer" (ablation)
     tau_in: float = 0.1
     tau_post: float = 0.03
-    budget_bytes: int = 0            # bytes (11-bit packed .bary + glTF buffers, core.metrics)
+    budget_bytes: int = 0            # bytes on disk (the .bin + .bary, core.io.file_size)
     budget_micro_triangles: int = 0  # micro-triangles
-    budget_ratio: float = 2.0        # the storage micromesh-tools' "microexpansion 2" (micro-
-                                     # triangles per input face) takes on the base, by its
-                                     # formula (core.construct.state.budget_cost)
-                                     # (core.lod.expansion); 0 with the others 0: no budget
+    budget_ratio: float = 2.0        # the .bin + .bary micromesh-tools' "microexpansion 2"
+                                     # (micro-triangles per input face) writes on the base
+                                     # (core.construct.state.budget_cost,
+                                     # core.lod.expansion); 0 with the others 0: no budget
 
     # parameters / optimiser
     reparameterize: bool = True      # False: Laplacian smoothing term instead (ablation)

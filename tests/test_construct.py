@@ -333,14 +333,16 @@ def test_adaptive_lod_and_budget(scene):
     assert 1 in r.gains
 
 
-def test_post_process_lod_with_byte_budget(scene):
+def test_post_process_lod_with_byte_budget(scene, tmp_path):
     """Algorithm 2 end to end: uniform optimisation to ℓmax, then roll back to a byte budget
-    between uniform level 1 and 2; the result fits, is balanced and only ever lowers levels."""
-    from core.metrics import storage_bytes
+    between uniform level 1 and 2; the result fits, is balanced and only ever lowers levels;
+    its files take the bytes the budget counted."""
+    from core.io.file_size import micromesh_file_bytes
+    from core.io.micromesh_export import write_micromesh
     from core.mesh_levels import balance_levels
 
     ref, base = scene
-    cost = lambda lv: storage_bytes(lv, base.n_vertices)["total"]  # noqa: E731
+    cost = lambda lv: micromesh_file_bytes(lv, base.n_vertices)["total"]  # noqa: E731
     nf = base.n_faces
     lo, hi = cost(np.full(nf, 1)), cost(np.full(nf, 2))
     budget = (lo + hi) // 2
@@ -349,6 +351,8 @@ def test_post_process_lod_with_byte_budget(scene):
     r = construct(ref, base, None, s)
     lv = r.micromesh.levels
     assert r.metrics["bytes"] == cost(lv) <= budget
+    write_micromesh(tmp_path / "r.gltf", r.micromesh, r.bounds)
+    assert sum((tmp_path / f"r{x}").stat().st_size for x in (".bin", ".bary")) == cost(lv)
     assert lv.min() >= 1 and lv.max() == 2 and (lv == 1).any()
     np.testing.assert_array_equal(balance_levels(base, lv), lv)       # ±1 across every edge
     assert {1, 2} <= set(r.gains)                   # measured at every level from ℓmin - 1 up

@@ -1,5 +1,5 @@
 """The bytes micro-mesh files take on disk: ours as the exporter writes them, micromesh-tools'
-as its files hold them."""
+as its files hold them, and the default budget that counts them."""
 from __future__ import annotations
 
 import json
@@ -7,14 +7,18 @@ import json
 import numpy as np
 import pytest
 
+from core.construct.state import budget_cost
 from core.io.file_size import micromesh_file_bytes, mmt_file_bytes
 from core.io.micromesh_export import write_micromesh
 from core.io.micromesh_import import read_micromesh
+from core.lod.expansion import expansion_bytes, expansion_levels, nominal_expansion_bytes
 from core.mesh import TriMesh
 from core.mesh_levels import balance_levels
 from core.micromesh import MicroMesh
 from core.primitives import icosphere
+from core.settings import preset
 
+from test_expansion import octahedron
 from test_micromesh_files import BASELINES
 
 
@@ -83,3 +87,34 @@ def test_micromesh_tools_files_take_what_the_count_says(path):
     f = read_micromesh(path)
     on_disk = path.with_suffix(".bin").stat().st_size + path.with_suffix(".bary").stat().st_size
     assert mmt_file_bytes(f.levels, len(f.positions)) == on_disk
+
+
+def test_nominal_bytes_are_those_of_the_base_the_decimation_aims_at():
+    """An octahedron (8 equal faces, 6 = 8 / 2 + 2 vertices) as the base of a 256-face input
+    (8 = 256 / 32): all its faces at level 3 (2 × 256 micro-triangles), the bytes the estimate
+    from the input's face count gives."""
+    base = octahedron()
+    assert expansion_levels(base, 256, 2.0).tolist() == [3] * 8
+    assert nominal_expansion_bytes(256, 2.0) == expansion_bytes(base, 256, 2.0) \
+        == mmt_file_bytes(np.full(8, 3), 6)
+    assert nominal_expansion_bytes(256, 0.0) == 0
+    assert nominal_expansion_bytes(10, 2.0) > 0                         # one face at least
+
+
+def test_the_default_budget_is_micromesh_tools_files_and_counts_ours():
+    """On the base at hand its files' bytes for its uniform tessellation; on a base much
+    coarser than its decimation's aim, what that aim would take (the input's face count
+    alone); the cost is our files' bytes."""
+    base = TriMesh(*icosphere(2))                      # 80 faces, twice the aim's 1280 / 32
+    cost, budget, unit = budget_cost(preset("default"), base, 16 * base.n_faces)
+    assert unit == "disk_bytes"
+    assert budget == expansion_bytes(base, 16 * base.n_faces, 2.0) \
+        > nominal_expansion_bytes(16 * base.n_faces, 2.0)
+    lv = expansion_levels(base, 16 * base.n_faces, 2.0)
+    assert cost(lv) == micromesh_file_bytes(lv, base.n_vertices)["total"] < budget
+    coarse = octahedron()
+    _, floor, _ = budget_cost(preset("default"), coarse, 100 * 32 * coarse.n_faces)
+    assert floor == nominal_expansion_bytes(100 * 32 * coarse.n_faces, 2.0) \
+        > expansion_bytes(coarse, 100 * 32 * coarse.n_faces, 2.0)
+    cost_b, budget_b, unit_b = budget_cost(preset("default", budget_bytes=5000), base, 1)
+    assert (budget_b, unit_b) == (5000, "bytes") and cost_b(lv) == cost(lv)

@@ -3,8 +3,7 @@ import numpy as np
 import pytest
 
 from core.metrics import (PhaseTimer, crack_edges, distance_to_mesh, geometric_error, isotropy,
-                          packed11_block_bytes, psnr, storage_bytes,
-                          triangle_isotropy)
+                          packed11_block_bytes, psnr, triangle_isotropy)
 
 
 def test_psnr():
@@ -49,15 +48,9 @@ def test_geometric_error_unit_square_offset():
     assert geometric_error(pts, w, v, t, diagonal=2.0) == pytest.approx(0.05)
 
 
-def test_storage_bytes_packed11():
+def test_packed11_block_bytes():
     # level 0: 3 values → 33 bits → 8 bytes; level 1: 6 → 66 bits → 12; level 3: 45 → 495 → 64.
     assert packed11_block_bytes(np.array([0, 1, 3])).tolist() == [8, 12, 64]
-    s = storage_bytes(np.array([3, 3]), n_base_vertices=4)
-    assert s["values"] == 128
-    bary = 40 + 64 * 7 + (24 + 128) + 56 + 16 + (16 + 8) + (16 + 48) + (16 + 32) + (16 + 4)
-    assert s["bary"] == bary
-    assert s["gltf_buffers"] == 48 + 24 + 4
-    assert s["total"] == s["bary"] + s["gltf_buffers"]
 
 
 def test_crack_edges():

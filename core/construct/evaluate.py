@@ -6,10 +6,11 @@ import torch
 
 from ..bounds import DirectionBounds, shell_volume, tight_bounds
 from ..cameras import Cameras, fibonacci_cameras
+from ..io.file_size import micromesh_file_bytes
 from ..io.micromesh_export import quantization_error
 from ..lod import effective_micro_triangles
 from ..mesh import TriMesh
-from ..metrics import crack_edges, geometric_error, isotropy, mmt_formula_bytes, storage_bytes
+from ..metrics import crack_edges, geometric_error, isotropy, mmt_formula_bytes
 from ..micromesh import MicroMesh
 from ..render import reference_images, render
 from ..settings import ConstructSettings
@@ -67,7 +68,7 @@ def evaluate(mm_unit: MicroMesh, reference_unit: TriMesh, s: ConstructSettings,
                                           reference_unit.bbox_diagonal)
     out["iso_base"] = isotropy(base.vertices, base.faces)
     out["iso_micro"] = isotropy(tess.vertices, tess.triangles)
-    st = storage_bytes(mm_unit.levels, base.n_vertices)
+    st = micromesh_file_bytes(mm_unit.levels, base.n_vertices)    # .bin + .bary on disk
     out["bytes"] = st["total"]
     out["bytes_values"] = st["values"]
     out["bytes_mmt"] = mmt_formula_bytes(mm_unit.levels, base.n_vertices)

@@ -9,11 +9,12 @@ from typing import Callable
 import numpy as np
 
 from ..cameras import Cameras
+from ..io.file_size import micromesh_file_bytes
 from ..lod import effective_micro_triangles
-from ..lod.expansion import expansion_levels
+from ..lod.expansion import expansion_bytes, nominal_expansion_bytes
 from ..mesh import TriMesh
 from ..normalization import Normalization
-from ..metrics import PhaseTimer, mmt_formula_bytes, storage_bytes
+from ..metrics import PhaseTimer
 from ..settings import ConstructSettings
 from .scene import Scene
 from .types import ConstructCancelled, Progress
@@ -24,21 +25,24 @@ FINISH_PHASES = ("fit", "residual_lod", "base_fit", "direction_fit", "bounds", "
 
 
 def budget_cost(s: ConstructSettings, base: TriMesh, reference_faces: int):
-    """(cost(levels), budget, its unit: "bytes", "formula_bytes" or "micro_triangles") of the
+    """(cost(levels), budget, its unit: "bytes", "disk_bytes" or "micro_triangles") of the
     LOD budget, or (None, 0, ""). Micro-triangles are counted as the result has them (after
-    the crack-free edge decimation), as the metrics report them. A budget per input face is
-    the storage micromesh-tools' uniform tessellation at that microexpansion would take on
-    this base, counted by its own formula (``core.lod.expansion``,
-    ``metrics.mmt_formula_bytes``): a level costs more bytes per micro-triangle the lower it
-    is, so adaptive levels within its micro-triangle count would take more storage than it
-    does."""
+    the crack-free edge decimation), as the metrics report them; bytes as our files take them
+    on disk (``.bin`` + ``.bary``, ``core.io.file_size``). A budget per input face is the
+    ``.bin`` + ``.bary`` micromesh-tools' files take for its uniform tessellation at that
+    microexpansion on this base, or on the base its decimation aims at where that is more
+    (``core.lod.expansion``): a level costs more bytes per micro-triangle the lower it is, so
+    adaptive levels within its micro-triangle count would take more storage than it does."""
     kind, amount = s.budget()
-    if kind == "bytes":
-        return (lambda lv: storage_bytes(lv, base.n_vertices)["total"]), amount, kind
-    if kind == "expansion":
-        nv = base.n_vertices
-        budget = mmt_formula_bytes(expansion_levels(base, reference_faces, amount), nv)
-        return (lambda lv: mmt_formula_bytes(lv, nv)), float(budget), "formula_bytes"
+    nv = base.n_vertices
+    if kind in ("bytes", "expansion"):
+        def cost(lv):
+            return micromesh_file_bytes(lv, nv)["total"]
+        if kind == "bytes":
+            return cost, amount, kind
+        budget = max(expansion_bytes(base, reference_faces, amount),
+                     nominal_expansion_bytes(reference_faces, amount))
+        return cost, float(budget), "disk_bytes"
     if kind == "micro_triangles":
         return (lambda lv: effective_micro_triangles(lv, base)), amount, kind
     return None, 0.0, ""
