@@ -97,8 +97,10 @@ def main() -> None:
     keys = list(dict.fromkeys(k for s in per.values() for k in s
                               if k.startswith(("bin:", "bary:"))))
     keys += ["bin total", "bary total", "on disk (.bin + .bary)", "gltf JSON"]
-    rows = [{"section": k, **{f.parent.name + "/" + f.name: per[str(f)].get(k, 0)
-                              for f in args.files}} for k in keys]
+    short = [f.parent.name + "/" + f.name for f in args.files]
+    names = short if len(set(short)) == len(short) else [str(f) for f in args.files]
+    rows = [{"section": k, **{n: per[str(f)].get(k, 0) for n, f in zip(names, args.files)}}
+            for k in keys]
     print_table(rows, list(rows[0]), title="bytes per section")
     write_json(args.json, [{"file": f, **s} for f, s in per.items()])
 
