@@ -13,8 +13,9 @@ and ``NAME_base``), the micro-mesh for other tools (``NAME.gltf`` + ``.bin`` + `
 (``NAME.report.png``, ``NAME.report.json``), ``NAME.metrics.json`` and with ``--ply``
 ``NAME_micromesh.ply``: NAME is the input's stem (``stem_ext`` where two inputs share one),
 the files appear together when the input is done (the metrics file last), and existing
-results are kept unless ``--force``. What Blender's importers print is shown with
-``--verbose`` only.
+results are kept unless ``--force`` (``--resume`` skips the complete ones and redoes the
+rest). What Blender's importers print is shown with ``--verbose`` only. ``--ray auto|HOST:PORT``
+runs each input as a task on a Ray cluster (``cli.ray_run``), the same files byte for byte.
 """
 from __future__ import annotations
 
@@ -34,7 +35,7 @@ micromesh_path.ensure_package()
 from micromesh.cli.args import BatchError, parse_args  # noqa: E402
 from micromesh.cli.interrupt import Interrupt  # noqa: E402
 from micromesh.cli.one_input import process  # noqa: E402
-from micromesh.cli.usage import DEMO_NAME, check_usage  # noqa: E402
+from micromesh.cli.usage import DEMO_NAME, check_usage, pending  # noqa: E402
 from micromesh.core.runtime import compiling  # noqa: E402
 
 
@@ -46,6 +47,15 @@ def main(argv: list[str] | None = None) -> int:
     except BatchError as e:
         print(f"batch.py: error: {e}", file=sys.stderr, flush=True)
         return 2
+    skipped: list = []
+    if (args.resume or args.ray is not None) and not args.force:
+        jobs, sets, skipped = pending(jobs, sets)
+        if skipped and args.ray is None:
+            print(f"skipping {len(skipped)} input(s) whose results are complete", flush=True)
+    if args.ray is not None:      # the inputs as tasks on a Ray cluster (cli.ray_run)
+        from micromesh.cli.ray_run import run_on_ray
+
+        return run_on_ray(args, settings, jobs, sets, skipped, t_start)
     rows: list = []
     # A fresh checkout's kernels compile in processes of their own while bpy and torch are
     # imported and the first input is read (the first construction takes them over).

@@ -36,6 +36,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             argv = []
         else:                 # python batch.py ARGS
             argv = sys.argv[1:]
+    return parser().parse_args(argv)
+
+
+def parser() -> argparse.ArgumentParser:
+    """``batch.py``'s options (``cli.ray_argv`` hands them on to one input's run)."""
     p = argparse.ArgumentParser(prog="batch.py", description=DESCRIPTION,
                                 epilog=EXIT_CODES,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -85,8 +90,16 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--verbose", action="store_true",
                    help="show what Blender's importers print (glTF, FBX, USD, .blend): hidden "
                         "otherwise, a failure said in one line")
+    p.add_argument("--resume", action="store_true",
+                   help="skip the inputs whose results are complete (their metrics file is "
+                        "there) and redo the others; without it existing results are refused")
+    p.add_argument("--ray", default=None, metavar="ADDRESS",
+                   help="each input a task on a Ray cluster: 'auto' (the cluster 'ray start' "
+                        "began on this machine) or HOST:PORT; implies --resume")
     p.add_argument("--demo-subdivisions", type=int, default=7, help=argparse.SUPPRESS)
-    return p.parse_args(argv)
+    # one input's result name where it differs from its stem (the runs --ray starts)
+    p.add_argument("--result-name", default=None, help=argparse.SUPPRESS)
+    return p
 
 
 def budget_overrides(text: str) -> list[str]:

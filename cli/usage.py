@@ -33,8 +33,14 @@ def check_usage(args: argparse.Namespace):
         raise BatchError("--threads must be >= 0 (0: all usable cores)")
     if args.maps and not 64 <= args.maps <= 16384:
         raise BatchError("--maps must be a resolution within 64..16384 (0: no maps)")
+    if args.ray is not None and not inputs:
+        raise BatchError("--ray needs --input (a file or a folder of them): the demo runs here")
     out_dir = Path(args.output)
     names = output_names(inputs) if inputs else [DEMO_NAME]
+    if args.result_name is not None:
+        if len(names) != 1:
+            raise BatchError("--result-name names the result of one input file")
+        names = [args.result_name]
     report = [".report.png", ".report.json"] if settings.compute_metrics else []
     suffixes = [".blend"] + result_suffixes(args) + report \
         + (["_micromesh.ply"] if args.ply else []) + [".metrics.json"]
@@ -44,8 +50,18 @@ def check_usage(args: argparse.Namespace):
     except OutputError as e:
         raise BatchError(str(e)) from None
     existing = [p for o in sets for p in o.existing()]
-    if existing and not args.force:
+    if existing and not (args.force or args.resume or args.ray is not None):
         raise BatchError(f"{len(existing)} result file(s) exist in {out_dir} ("
                          f"{', '.join(p.name for p in existing[:3])}"
-                         f"{', ...' if len(existing) > 3 else ''}); --force replaces them")
+                         f"{', ...' if len(existing) > 3 else ''}); --force replaces them, "
+                         "--resume skips the complete ones")
     return settings, inputs or [None], sets
+
+
+def pending(jobs: list, sets: list) -> tuple[list, list, list[tuple]]:
+    """``--resume``: the inputs whose result sets are not complete (every file there, the
+    marker written last among them) and their sets, and (input, result name) of those
+    skipped."""
+    keep = [not all(o.final(s).exists() for s in o.suffixes) for o in sets]
+    return ([j for j, k in zip(jobs, keep) if k], [o for o, k in zip(sets, keep) if k],
+            [(j, o.name) for j, o, k in zip(jobs, sets, keep) if not k])

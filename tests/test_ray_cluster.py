@@ -1,0 +1,214 @@
+"""``batch.py --ray`` on a real local Ray cluster (a head and two worker nodes on 127.0.0.1):
+six inputs and a broken one, a worker node killed while it runs an input, every result's
+files byte for byte those of the serial run; then a second run resumes (skips the complete
+results, runs only what failed)."""
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from core.io.ply import write_ply
+from core.primitives import noisy_sphere, torus
+from local_ray import LocalCluster
+from test_manifest import ROOT
+
+RAY = pytest.mark.skipif(importlib.util.find_spec("ray") is None,
+                         reason="the ray package is not installed (requirements-ray.txt)")
+BPY = pytest.mark.skipif(importlib.util.find_spec("bpy") is None, reason="needs the bpy wheel")
+
+# the optimiser (the default method), small enough for CI: a few seconds an input
+TINY = ("--preset", "fast", "--target-faces", "40", "--base-error", "0",
+        "--set", "time_limit_s=0", "--set", "iterations=8", "--set", "subdivide_at=2,5",
+        "--set", "n_views=8", "--set", "train_resolution=64", "--set", "lod_resolution=64",
+        "--set", "eval_views=8", "--set", "eval_resolution=128", "--set", "polish_steps=4",
+        "--set", "fit_passes=1")
+GOOD = ["s0", "s1", "s2", "s3", "s4", "ring"]
+
+
+def batch(*args, timeout=300) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(ROOT / "batch.py"), *map(str, args)],
+                          capture_output=True, text=True, timeout=timeout, cwd=ROOT)
+
+
+def _library(folder: Path) -> Path:
+    folder.mkdir()
+    for i in range(5):
+        write_ply(folder / f"s{i}.ply", *noisy_sphere(320 * (i + 2), seed=i))
+    write_ply(folder / "ring.ply", *torus(24, 12))
+    (folder / "broken.ply").write_text(
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+        "0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n")
+    return folder
+
+
+def _kill_during_a_task(cluster: LocalCluster, out: Path, driver: subprocess.Popen) -> tuple:
+    """Waits for the second worker node to run an input's batch.py, then kills that node's
+    raylet mid-run; returns (the input's name, its batch.py's pid)."""
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and driver.poll() is None:
+        raylet = cluster.raylet(1)
+        runs = {pid: cmd for pid, cmd in cluster.descendants(raylet).items()
+                if "batch.py" in cmd and "--result-name" in cmd} if raylet else {}
+        for pid, cmd in runs.items():
+            name = cmd.split("--result-name ")[1].split()[0]
+            if name not in GOOD:
+                continue
+            time.sleep(1.0)             # well inside its run: bpy alone takes longer
+            assert not (out / f"{name}.metrics.json").exists()
+            cluster.kill_worker(1)
+            return name, pid
+        time.sleep(0.1)
+    raise AssertionError("the second worker node ran no input")
+
+
+@RAY
+@BPY
+def test_a_cluster_with_a_worker_killed_gives_the_serial_bytes(tmp_path):
+    lib = _library(tmp_path / "lib")
+    serial, out = tmp_path / "serial", tmp_path / "ray"
+    t0 = time.monotonic()
+    r = batch("--input", lib, "--output", serial, *TINY)
+    assert r.returncode == 1 and "done: 6/7" in r.stdout, r.stdout + r.stderr
+    times = {"serial": time.monotonic() - t0}
+    with LocalCluster(workers=2, cpus=1) as cluster:
+        times["cluster up"] = time.monotonic() - t0 - sum(times.values())
+        log = tmp_path / "driver.log"
+        with open(log, "w") as f:
+            driver = subprocess.Popen(
+                [sys.executable, str(ROOT / "batch.py"), "--input", str(lib), "--output",
+                 str(out), *TINY, "--ray", cluster.address], stdout=f, stderr=subprocess.PIPE,
+                text=True, cwd=ROOT)
+        try:
+            killed, pid = _kill_during_a_task(cluster, out, driver)
+            _, err = driver.communicate(timeout=300)
+        finally:
+            if driver.poll() is None:
+                driver.kill()
+        times["ray run"] = time.monotonic() - t0 - sum(times.values())
+        text = log.read_text()
+        assert driver.returncode == 1, text + err
+        assert "done: 6/7" in text, text + err
+        # the one broken input fails alone, named on one line
+        errors = [line for line in err.splitlines() if line.startswith("batch.py: error:")]
+        assert len(errors) == 1 and "broken.ply" in errors[0] and "NaN" in errors[0], err
+        assert "Traceback" not in err
+        # the killed node's batch.py died with its worker, and its input ran again elsewhere
+        assert not Path(f"/proc/{pid}").exists()
+        assert (out / f"{killed}.metrics.json").exists()
+        for name in GOOD:
+            for suffix in (".bary", ".bin", ".gltf"):
+                assert (out / f"{name}{suffix}").read_bytes() == \
+                    (serial / f"{name}{suffix}").read_bytes(), f"{name}{suffix} differs"
+        assert not [p.name for p in out.iterdir() if ".partial-" in p.name]
+        assert not list(out.glob("broken*"))
+        summary = json.loads((out / "batch-summary.json").read_text())
+        status = {Path(r["input"]).name: r["status"] for r in summary["inputs"]}
+        assert status == {**{f"{n}.ply": "done" for n in GOOD}, "broken.ply": "failed"}
+        assert summary["run"]["done"] == 6 and summary["run"]["nodes"] == 2
+        assert (out / "batch-summary.csv").read_text().count("\n") == 8
+        # resumed: the complete results are skipped (untouched), only the broken one runs
+        stamps = {p.name: p.stat().st_mtime_ns for p in out.iterdir()
+                  if not p.name.startswith("batch-summary")}
+        r = batch("--input", lib, "--output", out, *TINY, "--ray", cluster.address)
+        times["resumed"] = time.monotonic() - t0 - sum(times.values())
+        assert r.returncode == 1 and "done: 0/1" in r.stdout, r.stdout + r.stderr
+        assert "6 complete before, skipped" in r.stdout
+        assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()
+                if not p.name.startswith("batch-summary")} == stamps
+    times["cluster down"] = time.monotonic() - t0 - sum(times.values())
+    print(", ".join(f"{k} {v:.0f} s" for k, v in times.items()), file=sys.stderr)
+
+
+@BPY
+def test_the_serial_run_resumes_too(tmp_path):
+    """--resume without Ray: the complete result is skipped, an incomplete one (files
+    without their metrics marker) is done again; without --resume both are refused."""
+    lib = tmp_path / "lib"
+    lib.mkdir()
+    for i in range(2):
+        write_ply(lib / f"s{i}.ply", *noisy_sphere(320, seed=i))
+    out = tmp_path / "out"
+    quick = ("--method", "projection", "--level", "1", "--target-faces", "40",
+             "--base-error", "0")
+    r = batch("--input", lib, "--output", out, *quick)
+    assert r.returncode == 0, r.stdout + r.stderr
+    (out / "s1.metrics.json").unlink()            # as if interrupted before its marker
+    first = (out / "s0.blend").stat().st_mtime_ns
+    r = batch("--input", lib, "--output", out, *quick)
+    assert r.returncode == 2 and "--resume" in r.stderr, r.stderr
+    r = batch("--input", lib, "--output", out, *quick, "--resume")
+    assert r.returncode == 0 and "skipping 1 input(s)" in r.stdout, r.stdout + r.stderr
+    assert "done: 1/1" in r.stdout and (out / "s1.metrics.json").exists()
+    assert (out / "s0.blend").stat().st_mtime_ns == first
+    assert os.path.getsize(out / "s1.bary") > 0
+
+
+@pytest.mark.parametrize("args, reason", [
+    (["--ray", "auto"], "--ray needs --input"),
+    (["--input", "{lib}", "--ray", "127.0.0.1:1"], "--ray 127.0.0.1:1"),
+])
+def test_ray_usage_errors_are_one_line(tmp_path, args, reason):
+    """Before any work: the demo is refused, an address nobody answers at is said at once
+    (or, without the ray package, that it is missing); exit 2."""
+    lib = tmp_path / "lib"
+    lib.mkdir()
+    write_ply(lib / "a.ply", *noisy_sphere(320))
+    r = batch(*[a.replace("{lib}", str(lib)) for a in args], "--output", tmp_path / "out",
+              timeout=120)
+    lines = [line for line in r.stderr.splitlines() if line.startswith("batch.py: error:")]
+    assert r.returncode == 2 and len(lines) == 1, r.stdout + r.stderr
+    assert reason in lines[0] or "requirements-ray.txt" in lines[0], lines[0]
+    assert "Traceback" not in r.stderr
+
+
+def test_each_input_runs_with_the_drivers_options(tmp_path):
+    """The command line of one input's run: every option the driver was given except its own
+    (--ray, --resume, --force, --threads, --input, --output), then the input, the folder,
+    its result name (two inputs sharing a stem), the task's threads and --force."""
+    import micromesh_path
+
+    micromesh_path.ensure_package()
+    from micromesh.cli.args import parse_args, parser
+    from micromesh.cli.ray_submit import one_input_argv
+    from micromesh.core.io.output_set import OutputSet
+
+    args = parse_args(["--input", "lib", "--output", str(tmp_path), "--ray", "auto",
+                       "--resume", "--threads", "2", "--preset", "fast", "--set", "seed=3",
+                       "--set", "iterations=9", "--ply", "--budget", "300kB", "--ratio", "0.05"])
+    out = OutputSet(tmp_path, "a_obj", [".blend", ".metrics.json"])
+    argv = one_input_argv(args, Path("lib/a.obj"), out)
+    again = parser().parse_args(argv)
+    assert again.input == str(Path("lib/a.obj").resolve())
+    assert again.output == str(tmp_path.resolve()) and again.result_name == "a_obj"
+    assert again.threads == 2 and again.force and again.ray is None and not again.resume
+    for key in ("preset", "overrides", "ply", "budget", "ratio", "method", "export"):
+        assert getattr(again, key) == getattr(args, key), key
+
+
+def test_task_memory_counts_the_triangles(tmp_path):
+    """The memory a task asks for: the estimate of the input's triangle count, read from a
+    PLY's header, an OBJ's faces (a quad is two), a binary STL's size."""
+    import micromesh_path
+
+    micromesh_path.ensure_package()
+    from micromesh.cli.task_memory import triangles
+    from micromesh.core.io.stl import read_stl
+
+    v, f = noisy_sphere(1280)
+    write_ply(tmp_path / "a.ply", v, f)
+    assert triangles(tmp_path / "a.ply") == len(f)
+    (tmp_path / "q.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\nf 1 2 3\n")
+    assert triangles(tmp_path / "q.obj") == 3
+    stl = bytearray(80) + (2).to_bytes(4, "little") + bytes(100)
+    (tmp_path / "b.stl").write_bytes(bytes(stl))
+    assert triangles(tmp_path / "b.stl") == 2 == len(read_stl(tmp_path / "b.stl")[1])
+    (tmp_path / "c.fbx").write_bytes(bytes(2000))
+    assert triangles(tmp_path / "c.fbx") == 100
