@@ -6,7 +6,6 @@ from core.io.micromesh_import import read_micromesh
 from core.lod import effective_micro_triangles, is_balanced
 from core.lod.expansion import expansion_levels
 from core.mesh import TriMesh
-from core.primitives import icosphere
 from core.settings import preset
 
 from test_micromesh_files import BASELINES
