@@ -64,7 +64,7 @@ def y_up(reference: Path, folder: Path) -> Path:
     in Blender, and what is in Blender's frame is exported Y-up."""
     m = read_mesh(reference)
     path = folder / f"{reference.stem}_yup.ply"
-    write_ply(path, m.vertices @ np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]]).T, m.faces,
+    write_ply(path, m.vertices @ np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]]).T, m.faces,
               double=True)
     return path
 
