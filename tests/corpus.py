@@ -105,8 +105,9 @@ def write_stl(path: Path, vertices: np.ndarray, faces: np.ndarray, ascii: bool =
                      + struct.pack("<I", len(faces)) + rec.tobytes())
 
 
-def write_gltf(path: Path, vertices: np.ndarray, faces: np.ndarray) -> None:
-    """A plain glTF (``.glb`` or ``.gltf`` + ``.bin``) holding one triangle mesh as given."""
+def write_gltf(path: Path, vertices: np.ndarray, faces: np.ndarray, edit=None) -> Path:
+    """A plain glTF (``.glb``, or ``.gltf`` + ``.bin``) holding one triangle mesh as given;
+    ``edit(doc)`` changes its JSON first."""
     b = Builder()
     pos = b.accessor(np.asarray(vertices, np.float32), "<f4", "POSITION", 34962)
     idx = b.accessor(np.asarray(faces, np.uint32).reshape(-1), "<u4", "indices", 34963)
@@ -114,11 +115,14 @@ def write_gltf(path: Path, vertices: np.ndarray, faces: np.ndarray) -> None:
     doc, blob = b.finish(None if glb else path.with_suffix(".bin").name)
     doc.update(meshes=[{"primitives": [{"attributes": {"POSITION": pos}, "indices": idx}]}],
                nodes=[{"mesh": 0}], scenes=[{"nodes": [0]}], scene=0)
+    if edit is not None:
+        edit(doc)
     if glb:
         path.write_bytes(pack_glb(doc, blob))
     else:
         path.with_suffix(".bin").write_bytes(blob)
         path.write_text(json.dumps(doc))
+    return path
 
 
 def write_usd(path: Path, ply: Path) -> None:

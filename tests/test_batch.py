@@ -13,6 +13,7 @@ bpy = pytest.importorskip("bpy")
 from core.io.file_size import mmt_file_bytes  # noqa: E402
 from core.lod.expansion import expansion_levels, nominal_expansion_bytes  # noqa: E402
 from core.mesh import TriMesh  # noqa: E402
+from corpus import write_gltf  # noqa: E402
 from test_manifest import ROOT  # noqa: E402
 
 
@@ -392,29 +393,6 @@ def read_ply_mesh(path):
     return read_mesh(path)
 
 
-def _gltf(path, vertices, faces, edit=None) -> None:
-    """A plain glTF (``.glb``, or ``.gltf`` + ``.bin``) of one mesh; ``edit(doc)`` first."""
-    from micromesh_path import ensure_package
-
-    ensure_package()
-    from micromesh.core.io.gltf import Builder, pack_glb
-
-    b = Builder()
-    pos = b.accessor(np.asarray(vertices, np.float32), "<f4", "POSITION", 34962)
-    idx = b.accessor(np.asarray(faces, np.uint32).reshape(-1), "<u4", "indices", 34963)
-    glb = path.suffix == ".glb"
-    doc, blob = b.finish(None if glb else path.with_suffix(".bin").name)
-    doc.update(meshes=[{"primitives": [{"attributes": {"POSITION": pos}, "indices": idx}]}],
-               nodes=[{"mesh": 0}], scenes=[{"nodes": [0]}], scene=0)
-    if edit:
-        edit(doc)
-    if glb:
-        path.write_bytes(pack_glb(doc, blob))
-    else:
-        path.with_suffix(".bin").write_bytes(blob)
-        path.write_text(json.dumps(doc))
-
-
 def test_broken_and_non_finite_gltf_are_refused_in_one_line(inputs, tmp_path):
     """Infinite positions (Blender's importer makes them zeros), a face index out of range,
     a missing buffer file, JSON that does not parse, a value that is not a number: each
@@ -424,16 +402,16 @@ def test_broken_and_non_finite_gltf_are_refused_in_one_line(inputs, tmp_path):
     v, f = ball.vertices, ball.faces
     folder = tmp_path / "in"
     folder.mkdir()
-    _gltf(folder / "inf.glb", np.full_like(v, np.inf), f)
-    _gltf(folder / "index.glb", v, np.where(np.arange(len(f))[:, None] == 3, len(v) + 9, f))
-    _gltf(folder / "nobuffer.gltf", v, f)
+    write_gltf(folder / "inf.glb", np.full_like(v, np.inf), f)
+    write_gltf(folder / "index.glb", v, np.where(np.arange(len(f))[:, None] == 3, len(v) + 9, f))
+    write_gltf(folder / "nobuffer.gltf", v, f)
     (folder / "nobuffer.bin").unlink()
     (folder / "notjson.gltf").write_text('{"asset": {"version": "2.0"}, "meshes": [ nope ]')
 
     def count(doc):
         doc["accessors"][0]["count"] = "many"
-    _gltf(folder / "value.gltf", v, f, count)
-    _gltf(folder / "good.glb", v, f)
+    write_gltf(folder / "value.gltf", v, f, count)
+    write_gltf(folder / "good.glb", v, f)
     r = run_batch("--input", folder, "--output", tmp_path / "out", *QUICK)
     assert r.returncode == 1 and "done: 1/6" in r.stdout, r.stdout + r.stderr
     lines = _error_lines(r.stderr)

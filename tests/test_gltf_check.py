@@ -9,31 +9,18 @@ import json
 import numpy as np
 import pytest
 
-from core.io.gltf import Builder, GltfError, pack_glb
+from core.io.gltf import GltfError
 from core.io.gltf_check import check_gltf
 from core.primitives import icosphere
+from corpus import write_gltf
 
 V, F = icosphere(2)                   # 42 vertices, 80 faces
 
 
 def write(path, vertices=V, faces=F, edit=None):
-    """A plain glTF of one triangle mesh (``.glb``, or ``.gltf`` + ``.bin``); ``edit(doc)``
+    """A plain glTF of the icosphere (``.glb``, or ``.gltf`` + ``.bin``); ``edit(doc)``
     changes its JSON first."""
-    b = Builder()
-    pos = b.accessor(np.asarray(vertices, np.float32), "<f4", "POSITION", 34962)
-    idx = b.accessor(np.asarray(faces, np.uint32).reshape(-1), "<u4", "indices", 34963)
-    glb = path.suffix == ".glb"
-    doc, blob = b.finish(None if glb else path.with_suffix(".bin").name)
-    doc.update(meshes=[{"primitives": [{"attributes": {"POSITION": pos}, "indices": idx}]}],
-               nodes=[{"mesh": 0}], scenes=[{"nodes": [0]}], scene=0)
-    if edit is not None:
-        edit(doc)
-    if glb:
-        path.write_bytes(pack_glb(doc, blob))
-    else:
-        path.with_suffix(".bin").write_bytes(blob)
-        path.write_text(json.dumps(doc))
-    return path
+    return write_gltf(path, vertices, faces, edit)
 
 
 def test_good_files_pass(tmp_path):
