@@ -21,6 +21,7 @@ from pathlib import Path
 from .args import BatchError
 
 BATCH_PY = Path(__file__).resolve().parents[1] / "batch.py"
+CANCEL_WAIT_S = 20      # Ctrl-C: how long the cancelled tasks' workers may take to end
 
 
 def run_on_ray(args, settings, jobs: list, sets: list, skipped: list, t_start: float) -> int:
@@ -107,6 +108,9 @@ def _run(ray, args, settings, jobs, sets, skipped, t_start) -> int:
     except KeyboardInterrupt:
         for ref in pending:      # the worker killed, and its batch.py with it
             ray.cancel(ref, force=True)
+        ray.wait(pending, num_returns=len(pending), timeout=CANCEL_WAIT_S)
+        for i in {refs[ref] for ref in pending}:      # what those runs had begun to write
+            ray_task.remove_partials(sets[i].folder, sets[i].name)
         progress.close()
         _finish(args, jobs, sets, records, skipped, len(nodes), t_start, "interrupted")
         print("batch.py: interrupted", file=sys.stderr, flush=True)

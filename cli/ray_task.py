@@ -39,7 +39,7 @@ def run_input(batch_py: str, argv: list[str], out_dir: str, name: str, marker: s
             f"batch.py: error: {batch_py} not found on {host}: every node needs the checkout "
             "at the same path"])
         return record
-    _remove_partials(Path(out_dir), name)     # an attempt killed earlier left its temporaries
+    remove_partials(Path(out_dir), name)     # an attempt killed earlier left its temporaries
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     if not cuda:           # a CPU task on a GPU node stays on the CPU (the same bytes)
         env["CUDA_VISIBLE_DEVICES"] = ""
@@ -70,9 +70,10 @@ def _die_with_parent() -> None:
         ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
 
 
-def _remove_partials(folder: Path, name: str) -> None:
+def remove_partials(folder: Path, name: str) -> None:
     """The temporary files of an earlier attempt at ``name`` (``core.io.output_set``'s
-    ``.NAME.partial-PID*``): only one attempt at an input runs at a time."""
+    ``.NAME.partial-PID*``): only one attempt at an input runs at a time (and none once the
+    driver cancelled it)."""
     for p in folder.glob(f".{glob.escape(name)}.partial-*"):
         p.unlink(missing_ok=True)
 

@@ -1,12 +1,13 @@
 """``batch.py --ray`` on a real local Ray cluster (a head and two worker nodes on 127.0.0.1):
-six inputs and a broken one, a worker node killed while it runs an input, every result's
-files byte for byte those of the serial run; then a second run resumes (skips the complete
-results, runs only what failed)."""
+six inputs and a broken one, interrupted after the first result, then resumed with a worker
+node killed while it runs an input; every result's files byte for byte those of the serial
+run. The serial run's --resume, --ray's usage errors, a task's command line and memory."""
 from __future__ import annotations
 
 import importlib.util
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -69,9 +70,26 @@ def _kill_during_a_task(cluster: LocalCluster, out: Path, driver: subprocess.Pop
     raise AssertionError("the second worker node ran no input")
 
 
+def _driver(lib: Path, out: Path, cluster: LocalCluster, log: Path) -> subprocess.Popen:
+    with open(log, "w") as f:
+        return subprocess.Popen([sys.executable, str(ROOT / "batch.py"), "--input", str(lib),
+                                 "--output", str(out), *TINY, "--ray", cluster.address],
+                                stdout=f, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+
+
+def _interrupt_after_one(out: Path, driver: subprocess.Popen) -> None:
+    """Ctrl-C as soon as one input's result is complete."""
+    deadline = time.monotonic() + 120
+    while not list(out.glob("*.metrics.json")) and time.monotonic() < deadline:
+        assert driver.poll() is None, driver.communicate()[1]
+        time.sleep(0.1)
+    driver.send_signal(signal.SIGINT)
+
+
 @RAY
 @BPY
 def test_a_cluster_with_a_worker_killed_gives_the_serial_bytes(tmp_path):
+    """Interrupted once, resumed with a worker node killed mid-input: the serial bytes."""
     lib = _library(tmp_path / "lib")
     serial, out = tmp_path / "serial", tmp_path / "ray"
     t0 = time.monotonic()
@@ -80,50 +98,56 @@ def test_a_cluster_with_a_worker_killed_gives_the_serial_bytes(tmp_path):
     times = {"serial": time.monotonic() - t0}
     with LocalCluster(workers=2, cpus=1) as cluster:
         times["cluster up"] = time.monotonic() - t0 - sum(times.values())
-        log = tmp_path / "driver.log"
-        with open(log, "w") as f:
-            driver = subprocess.Popen(
-                [sys.executable, str(ROOT / "batch.py"), "--input", str(lib), "--output",
-                 str(out), *TINY, "--ray", cluster.address], stdout=f, stderr=subprocess.PIPE,
-                text=True, cwd=ROOT)
+        driver = _driver(lib, out, cluster, tmp_path / "first.log")
+        try:
+            _interrupt_after_one(out, driver)
+            _, err = driver.communicate(timeout=120)
+        finally:
+            if driver.poll() is None:
+                driver.kill()
+        assert driver.returncode == 130 and err.strip().splitlines()[-1] == \
+            "batch.py: interrupted", err
+        complete = {p.name.split(".")[0] for p in out.glob("*.metrics.json")}
+        assert complete and not [p.name for p in out.iterdir() if ".partial-" in p.name]
+        stamps = {p.name: p.stat().st_mtime_ns for p in out.iterdir()
+                  if p.name.split(".")[0] in complete}
+        times["interrupted"] = time.monotonic() - t0 - sum(times.values())
+        # resumed: the complete results skipped (untouched), a worker node killed mid-input
+        log = tmp_path / "second.log"
+        driver = _driver(lib, out, cluster, log)
         try:
             killed, pid = _kill_during_a_task(cluster, out, driver)
             _, err = driver.communicate(timeout=300)
         finally:
             if driver.poll() is None:
                 driver.kill()
-        times["ray run"] = time.monotonic() - t0 - sum(times.values())
+        times["resumed, a node killed"] = time.monotonic() - t0 - sum(times.values())
         text = log.read_text()
-        assert driver.returncode == 1, text + err
-        assert "done: 6/7" in text, text + err
-        # the one broken input fails alone, named on one line
-        errors = [line for line in err.splitlines() if line.startswith("batch.py: error:")]
-        assert len(errors) == 1 and "broken.ply" in errors[0] and "NaN" in errors[0], err
-        assert "Traceback" not in err
-        # the killed node's batch.py died with its worker, and its input ran again elsewhere
-        assert not Path(f"/proc/{pid}").exists()
-        assert (out / f"{killed}.metrics.json").exists()
-        for name in GOOD:
-            for suffix in (".bary", ".bin", ".gltf"):
-                assert (out / f"{name}{suffix}").read_bytes() == \
-                    (serial / f"{name}{suffix}").read_bytes(), f"{name}{suffix} differs"
-        assert not [p.name for p in out.iterdir() if ".partial-" in p.name]
-        assert not list(out.glob("broken*"))
-        summary = json.loads((out / "batch-summary.json").read_text())
-        status = {Path(r["input"]).name: r["status"] for r in summary["inputs"]}
-        assert status == {**{f"{n}.ply": "done" for n in GOOD}, "broken.ply": "failed"}
-        assert summary["run"]["done"] == 6 and summary["run"]["nodes"] == 2
-        assert (out / "batch-summary.csv").read_text().count("\n") == 8
-        # resumed: the complete results are skipped (untouched), only the broken one runs
-        stamps = {p.name: p.stat().st_mtime_ns for p in out.iterdir()
-                  if not p.name.startswith("batch-summary")}
-        r = batch("--input", lib, "--output", out, *TINY, "--ray", cluster.address)
-        times["resumed"] = time.monotonic() - t0 - sum(times.values())
-        assert r.returncode == 1 and "done: 0/1" in r.stdout, r.stdout + r.stderr
-        assert "6 complete before, skipped" in r.stdout
-        assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()
-                if not p.name.startswith("batch-summary")} == stamps
+        rest = 7 - len(complete)
+        assert driver.returncode == 1 and f"done: {rest - 1}/{rest}" in text, text + err
+        assert f"{len(complete)} complete before, skipped" in text
+        assert all(p.stat().st_mtime_ns == stamps[p.name] for p in out.iterdir()
+                   if p.name in stamps)
     times["cluster down"] = time.monotonic() - t0 - sum(times.values())
+    # the one broken input fails alone, named on one line
+    errors = [line for line in err.splitlines() if line.startswith("batch.py: error:")]
+    assert len(errors) == 1 and "broken.ply" in errors[0] and "NaN" in errors[0], err
+    assert "Traceback" not in err
+    # the killed node's batch.py died with its worker, and its input ran again elsewhere
+    assert not Path(f"/proc/{pid}").exists()
+    assert killed not in complete and (out / f"{killed}.metrics.json").exists()
+    for name in GOOD:
+        for suffix in (".bary", ".bin", ".gltf"):
+            assert (out / f"{name}{suffix}").read_bytes() == \
+                (serial / f"{name}{suffix}").read_bytes(), f"{name}{suffix} differs"
+    assert not [p.name for p in out.iterdir() if ".partial-" in p.name]
+    assert not list(out.glob("broken*"))
+    summary = json.loads((out / "batch-summary.json").read_text())
+    status = {Path(r["input"]).name: r["status"] for r in summary["inputs"]}
+    assert status == {**{f"{n}.ply": "skipped" if n in complete else "done" for n in GOOD},
+                      "broken.ply": "failed"}
+    assert summary["run"]["skipped"] == len(complete) and summary["run"]["nodes"] == 2
+    assert (out / "batch-summary.csv").read_text().count("\n") == 8
     print(", ".join(f"{k} {v:.0f} s" for k, v in times.items()), file=sys.stderr)
 
 
