@@ -236,3 +236,27 @@ def test_task_memory_counts_the_triangles(tmp_path):
     assert triangles(tmp_path / "b.stl") == 2 == len(read_stl(tmp_path / "b.stl")[1])
     (tmp_path / "c.fbx").write_bytes(bytes(2000))
     assert triangles(tmp_path / "c.fbx") == 100
+
+
+def test_a_task_reports_its_run_and_raises_for_a_killed_one(tmp_path):
+    """The worker's side without Ray: an earlier attempt's temporaries removed, batch.py's
+    error lines and exit status returned, a run killed by a signal raised (Ray retries it)."""
+    import micromesh_path
+
+    micromesh_path.ensure_package()
+    from micromesh.cli.ray_task import ChildKilled, run_input
+
+    stale = tmp_path / ".a.partial-123.blend"
+    stale.write_bytes(b"half")
+    fails = tmp_path / "fails.py"
+    fails.write_text("print('[a] reading')\nprint('batch.py: error: a.ply: bad')\n"
+                     "raise SystemExit(1)\n")
+    r = run_input(str(fails), [], str(tmp_path), "a", ".metrics.json", False)
+    assert r["rc"] == 1 and r["errors"] == ["batch.py: error: a.ply: bad"]
+    assert r["tail"][0] == "[a] reading" and not stale.exists()
+    killed = tmp_path / "killed.py"
+    killed.write_text("import os, signal\nos.kill(os.getpid(), signal.SIGKILL)\n")
+    with pytest.raises(ChildKilled, match="SIGKILL"):
+        run_input(str(killed), [], str(tmp_path), "a", ".metrics.json", False)
+    r = run_input(str(tmp_path / "none.py"), [], str(tmp_path), "a", ".metrics.json", False)
+    assert r["rc"] == 2 and "same path" in r["errors"][0]
