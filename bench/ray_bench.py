@@ -34,11 +34,11 @@ OPTIONS = ("--preset", "fast", "--set", "time_limit_s=0", "--set", "iterations=3
            "--set", "subdivide_at=5,12,20", "--target-faces", "160", "--base-error", "0")
 
 
-def _batch(*args) -> float:
+def _batch(*args, env=None) -> float:
     """Seconds of one ``batch.py`` run (which must succeed)."""
     t0 = time.perf_counter()
     r = subprocess.run([sys.executable, str(ROOT / "batch.py"), *map(str, args)],
-                       capture_output=True, text=True, cwd=ROOT)
+                       capture_output=True, text=True, cwd=ROOT, env=env)
     seconds = time.perf_counter() - t0
     if r.returncode != 0:
         raise SystemExit(f"batch.py {' '.join(map(str, args))} failed:\n{r.stdout[-3000:]}"
@@ -76,7 +76,7 @@ def main() -> None:
             out = tmp / f"ray{workers}"
             with LocalCluster(workers=workers, cpus=args.cpus) as cluster:
                 seconds = _batch("--input", lib, "--output", out, *OPTIONS, "--threads",
-                                 args.cpus, "--ray", cluster.address)
+                                 args.cpus, "--ray", cluster.address, env=cluster.env)
             records.append(_record("ray", workers, workers * args.cpus, seconds, args.inputs,
                                    out, serial))
     base = records[0]["inputs_per_minute"]

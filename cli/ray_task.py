@@ -79,9 +79,9 @@ def remove_partials(folder: Path, name: str) -> None:
 
 
 def _node_id() -> str:
-    try:
-        import ray
-
-        return ray.get_runtime_context().get_node_id()
-    except Exception:         # outside Ray (the tests call the function directly)
+    """The Ray node's id ("" outside a Ray worker: the tests call the function directly;
+    asking Ray there would start a local instance)."""
+    ray = sys.modules.get("ray")
+    if ray is None or not ray.is_initialized():
         return ""
+    return ray.get_runtime_context().get_node_id()

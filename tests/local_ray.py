@@ -5,7 +5,7 @@ machine). ``kill_worker`` kills one node's raylet as a lost machine would; ``sto
 every process the cluster started (its nodes' process trees, never by name).
 
     with LocalCluster(workers=2, cpus=1) as cluster:
-        run(["python", "batch.py", ..., "--ray", cluster.address])
+        run(["python", "batch.py", ..., "--ray", cluster.address], env=cluster.env)
 """
 from __future__ import annotations
 
@@ -54,7 +54,9 @@ class LocalCluster:
         self.nodes: list[subprocess.Popen] = []
         ray = Path(sys.executable).with_name("ray")
         self.ray = str(ray) if ray.exists() else (shutil.which("ray") or "ray")
-        self.env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0",
+        # ``env``: the nodes' and the drivers' (Ray's token authentication off on this
+        # loopback cluster, whatever a ~/.ray/auth_token would switch on)
+        self.env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0", RAY_AUTH_MODE="disabled",
                         PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
 
     def __enter__(self) -> "LocalCluster":

@@ -33,9 +33,9 @@ TINY = ("--preset", "fast", "--target-faces", "40", "--base-error", "0",
 GOOD = ["s0", "s1", "s2", "s3", "s4", "ring"]
 
 
-def batch(*args, timeout=300) -> subprocess.CompletedProcess:
+def batch(*args, timeout=300, env=None) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, str(ROOT / "batch.py"), *map(str, args)],
-                          capture_output=True, text=True, timeout=timeout, cwd=ROOT)
+                          capture_output=True, text=True, timeout=timeout, cwd=ROOT, env=env)
 
 
 def _library(folder: Path) -> Path:
@@ -74,7 +74,8 @@ def _driver(lib: Path, out: Path, cluster: LocalCluster, log: Path) -> subproces
     with open(log, "w") as f:
         return subprocess.Popen([sys.executable, str(ROOT / "batch.py"), "--input", str(lib),
                                  "--output", str(out), *TINY, "--ray", cluster.address],
-                                stdout=f, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+                                stdout=f, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+                                env=cluster.env)
 
 
 def _interrupt_after_one(out: Path, driver: subprocess.Popen) -> None:
@@ -147,6 +148,7 @@ def test_a_cluster_with_a_worker_killed_gives_the_serial_bytes(tmp_path):
     assert status == {**{f"{n}.ply": "skipped" if n in complete else "done" for n in GOOD},
                       "broken.ply": "failed"}
     assert summary["run"]["skipped"] == len(complete) and summary["run"]["nodes"] == 2
+    assert all(r["node"] and r["seconds"] > 0 for r in summary["inputs"] if r["status"] == "done")
     assert (out / "batch-summary.csv").read_text().count("\n") == 8
     print(", ".join(f"{k} {v:.0f} s" for k, v in times.items()), file=sys.stderr)
 
