@@ -50,10 +50,11 @@ class MICROMESH_PG_settings(bpy.types.PropertyGroup):
     base_min_quality: FloatProperty(name="Min Quality", default=0.4, min=0.0, max=0.99,
                                     description="Floor on the shape (2r/R) of new base triangles")
     budget_mode: EnumProperty(name="Budget", default="RATIO", items=[
-        ("RATIO", "× Input", "The storage micromesh-tools' microexpansion (micro-triangles "
-                             "per source triangle) would take on the base"),
+        ("RATIO", "× Input", "The bytes on disk (.bin + .bary) micromesh-tools' files take "
+                             "for its microexpansion (micro-triangles per source triangle) "
+                             "on the base"),
         ("TRIANGLES", "Micro-Triangles", "A micro-triangle count"),
-        ("BYTES", "Bytes", "Storage of the .bary + glTF buffers"),
+        ("BYTES", "Bytes", "Bytes on disk of the .bin + .bary"),
         ("NONE", "None", "No budget: the LOD's gain threshold alone decides")])
     budget_value: FloatProperty(name="Amount", default=2.0, min=0.0,
                                 description="Micro-triangles per source triangle, micro-triangles "
