@@ -22,6 +22,7 @@ from .args import BatchError
 
 BATCH_PY = Path(__file__).resolve().parents[1] / "batch.py"
 CANCEL_WAIT_S = 20      # Ctrl-C: how long the cancelled tasks' workers may take to end
+WAIT_S = 0.5            # the longest a wait for the next result holds off Ctrl-C
 
 
 def run_on_ray(args, settings, jobs: list, sets: list, skipped: list, t_start: float) -> int:
@@ -100,7 +101,8 @@ def _run(ray, args, settings, jobs, sets, skipped, t_start) -> int:
             if r is not None:
                 _report(progress, r)
         while pending:
-            ready, pending = ray.wait(pending, num_returns=1)
+            # (a timeout: Ctrl-C is raised between waits, not held until a task ends)
+            ready, pending = ray.wait(pending, num_returns=1, timeout=WAIT_S)
             for ref in ready:
                 i = refs[ref]
                 records[i] = _outcome(ray, ref, jobs[i], sets[i])
