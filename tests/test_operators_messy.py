@@ -4,7 +4,6 @@ non-manifold fins and holes, and an object far from the origin. Each constructs 
 mesh would, crack-free, and the source is never changed."""
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
