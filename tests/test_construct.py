@@ -115,7 +115,7 @@ def test_the_refit_under_folded_bounds_holds_or_clips_whichever_images_better(sc
     result with its tight bounds folded too or the one with those values clipped, the one
     of lower image error, and says which."""
     import core.construct.finalise as fin
-    from core.bounds import baked, tight_bounds
+    from core.bounds import baked, micromesh_shell_volume, tight_bounds
     from core.construct.scene import image_error
 
     seen = []
@@ -141,6 +141,9 @@ def test_the_refit_under_folded_bounds_holds_or_clips_whichever_images_better(sc
     np.testing.assert_allclose(out.displacements, {"held": held, "clipped": clipped}[how]
                                .displacements)
     assert 0 <= out.displacements.min() and out.displacements.max() <= 1
+    # each try's image error and its result's tight shell, as ratios to the tight bounds'
+    shell = micromesh_shell_volume(out) / r.metrics["lp_bounds"]["shell_before"]
+    assert np.isclose(r.metrics["lp_bounds"]["tries"][0][3], shell)
 
 
 def _clipping_bounds(monkeypatch, unsmoothed_only=False):

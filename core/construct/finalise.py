@@ -87,9 +87,10 @@ def folded(run: RunState, mm: MicroMesh, samples, error: float | None = None
     from the metrics' views (``scene.image_error``) is at most 1 % above the tight bounds'
     is kept (the LOD views' L1 at 192² had kept bounds that cost the ogre 0.7 dB and the CAD
     part 0.3 dB under the judge); a try that would end past ``run.deadline`` is left out.
-    ``run.notes["lp_bounds"]`` says what happened. ``error``: mm's shading error on
-    ``samples``, where the caller knows it. Returns the folded micro-mesh and its image
-    error (None where no try measured it)."""
+    ``run.notes["lp_bounds"]`` says what happened (each try: its smoothing, its image error,
+    which refit it kept and its tight shell, both as ratios to the tight bounds'). ``error``:
+    mm's shading error on ``samples``, where the caller knows it. Returns the folded
+    micro-mesh and its image error (None where no try measured it)."""
     with run.timer.phase("finalize"):
         tight = baked(mm, tight_bounds(mm))
     if not run.s.lp_bounds or samples is None:
@@ -109,7 +110,9 @@ def folded(run: RunState, mm: MicroMesh, samples, error: float | None = None
         with run.timer.phase("bounds"):
             bounds = lp_bounds(mm, smoothing=mu)
         least, after, how = _refitted(run, mm, bounds, samples)
-        note["tries"].append([mu, float(after / max(before, 1e-300)), how])
+        note["tries"].append([mu, float(after / max(before, 1e-300)), how,
+                              float(micromesh_shell_volume(least)
+                                    / max(note["shell_before"], 1e-300))])
         note.update(image_error_after=float(after), shell_after=_shell(least))
         last = time.perf_counter() - began
         if after <= _IMAGE_TOLERANCE * before:
