@@ -12,8 +12,12 @@ minus that of our float tessellation (``--ply``): what the 11-bit file loses. ``
 (``--method projection``, level 3 uniform, on the same default base) as the simplest
 alternative.
 
-    python bench/construct_bench.py [--meshes NAME ...] [--set key=value ...] [--staged]
-        [--judge-python PATH] [--out DIR] [--json FILE]
+    python bench/construct_bench.py [--meshes NAME ...] [--generated [NAME ...]]
+        [--set key=value ...] [--staged] [--judge-python PATH] [--out DIR] [--json FILE]
+
+``--generated`` runs the meshes ``bench/generated_meshes.py`` makes (high genus, many parts,
+a 871k-face scan-like surface), judged against themselves; micromesh-tools' columns stay
+empty until its outputs for them are in ``../shared/baselines/NAME/``.
 
 The judge needs its own environment (``python3 -m venv V && V/bin/pip install -r
 ../shared/judge/requirements.txt``); give its interpreter with ``--judge-python`` or
@@ -31,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from _common import MESHES, ROOT, parser, print_table, write_json
+from generated_meshes import GENERATED, write as write_generated
 
 SHARED = MESHES.parent
 BASELINES = SHARED / "baselines"
@@ -60,9 +65,13 @@ def run_batch(mesh: Path, out: Path, overrides: list[str], extra: list[str]) -> 
     return json.loads((out / f"{mesh.stem}.metrics.json").read_text())["metrics"], wall
 
 
-def theirs(name: str, python: str, cache: Path) -> dict:
-    j = judge(python, MESHES / f"{name}.ply", BASELINES / name / f"out_{name}.gltf",
-              cache / f"theirs_{name}.json")
+def theirs(name: str, mesh: Path, python: str, cache: Path) -> dict | None:
+    """The judge's figures for micromesh-tools' file, or None where it has none for ``name``
+    (the generated meshes until their outputs are put in ../shared/baselines)."""
+    path = BASELINES / name / f"out_{name}.gltf"
+    if not path.exists():
+        return None
+    j = judge(python, mesh, path, cache / f"theirs_{name}.json")
     return {"psnr": j["render"]["psnr_full"], "geom_err": j["geom_error"]["ref_to_mm"]["avg"],
             "shell": j["shell"]["shell_volume_tight"], "bytes": j["storage"]["mmt_formula_bytes"],
             "disk": j["storage"]["disk_bytes_bin_bary"],
@@ -70,14 +79,14 @@ def theirs(name: str, python: str, cache: Path) -> dict:
             "base_faces": j["counts"]["base_faces"], "micro_faces": j["counts"]["micro_faces_full"]}
 
 
-def ours(name: str, label: str, python: str, out: Path, overrides: list[str],
+def ours(mesh: Path, label: str, python: str, out: Path, overrides: list[str],
          extra: list[str]) -> dict:
-    m, wall = run_batch(MESHES / f"{name}.ply", out, overrides, extra)
+    name = mesh.stem
+    m, wall = run_batch(mesh, out, overrides, extra)
     for stale in out.glob("judge_*.json"):     # scores of an earlier run's files
         stale.unlink()
-    j = judge(python, MESHES / f"{name}.ply", out / f"{name}.gltf", out / f"judge_{name}.json")
-    jp = judge(python, MESHES / f"{name}.ply", out / f"{name}_micromesh.ply",
-               out / f"judge_{name}_ply.json")
+    j = judge(python, mesh, out / f"{name}.gltf", out / f"judge_{name}.json")
+    jp = judge(python, mesh, out / f"{name}_micromesh.ply", out / f"judge_{name}_ply.json")
     base = m.get("base", {})
     topo_ok = base.get("topology_input") == base.get("topology_base") if base else None
     return {"psnr": j["render"]["psnr_full"], "psnr_ply": jp["render"]["psnr_full"],
@@ -96,39 +105,42 @@ def main() -> None:
     p.add_argument("--set", nargs="+", action="extend", default=[], metavar="KEY=VALUE",
                    help="settings overrides for our row (a non-default row, labelled so)")
     p.add_argument("--staged", action="store_true", help="add our staged baseline row")
+    p.add_argument("--generated", nargs="*", default=None, metavar="NAME",
+                   help="the meshes of bench/generated_meshes.py (all, or those named): "
+                        "instead of the shared ones, or besides those --meshes names")
     p.add_argument("--judge-python", default=os.environ.get("MICROMESH_JUDGE_PYTHON",
                                                             str(SHARED / "judge" / "venv" / "bin" / "python")))
     p.add_argument("--out", default="/tmp/micromesh_construct_bench")
     args = p.parse_args()
-    if not MESHES.exists() or not BASELINES.exists():
+    shared = args.meshes is not None or args.generated is None
+    if shared and (not MESHES.exists() or not BASELINES.exists()):
         sys.exit(f"skip: {MESHES} or {BASELINES} not found")
+    names = (args.meshes or sorted(f.stem for f in MESHES.glob("*.ply"))) if shared else []
     if not Path(args.judge_python).exists():
         sys.exit(f"the judge's interpreter {args.judge_python} was not found (see --help)")
-    names = args.meshes or sorted(f.stem for f in MESHES.glob("*.ply"))
+    meshes = [MESHES / f"{n}.ply" for n in names]
+    if args.generated is not None:
+        meshes += [write_generated(n, Path(args.out) / "generated")
+                   for n in args.generated or GENERATED]
     label = "default" if not args.set else "default+" + ",".join(args.set)
     rows, records = [], []
-    for name in names:
+    for mesh in meshes:
+        name = mesh.stem
         out = Path(args.out) / label.replace("/", "_") / name
         out.mkdir(parents=True, exist_ok=True)
-        t = theirs(name, args.judge_python, Path(args.out))
-        rows_here = [("ours", ours(name, label, args.judge_python, out, args.set, []))]
+        t = theirs(name, mesh, args.judge_python, Path(args.out))
+        rows_here = [("ours", ours(mesh, label, args.judge_python, out, args.set, []))]
         if args.staged:
             sout = out / "staged"
             sout.mkdir(exist_ok=True)
-            rows_here.append(("staged", ours(name, "staged", args.judge_python, sout, [],
+            rows_here.append(("staged", ours(mesh, "staged", args.judge_python, sout, [],
                                              ["--method", "projection", "--level", "3"])))
         for kind, o in rows_here:
-            rec = {"mesh": name, "row": o["label"], "dpsnr": round(o["psnr"] - t["psnr"], 2),
-                   "psnr": round(o["psnr"], 2), "psnr_mmt": round(t["psnr"], 2),
+            rec = {"mesh": name, "row": o["label"], "psnr": round(o["psnr"], 2),
                    "file_vs_ply": round(o["psnr"] - o["psnr_ply"], 2),
-                   "storage": round(o["bytes"] / t["bytes"], 3),
-                   "disk": round(o["disk"] / t["disk"], 3),
-                   "shell": round(o["shell"] / t["shell"], 3),
-                   "iso_base": round(o["iso_base"], 3), "iso_mmt": round(t["iso_base"], 3),
-                   "geom_err": round(o["geom_err"] / t["geom_err"], 3),
-                   "cracks": o["cracks"], "topology": o["topology_kept"],
-                   "base_f": o["base_faces"], "base_f_mmt": t["base_faces"],
-                   "time_s": o["time_s"]}
+                   "iso_base": round(o["iso_base"], 3), "cracks": o["cracks"],
+                   "topology": o["topology_kept"], "base_f": o["base_faces"],
+                   "time_s": o["time_s"], **_against(o, t)}
             rows.append(rec)
             records.append({**rec, "ours": o, "theirs": t})
             print(rec, flush=True)
@@ -139,8 +151,25 @@ def main() -> None:
     print_table(rows, cols, title="ours vs micromesh-tools (judge PSNR; storage (formula), disk "
                                   "(.bin + .bary), shell and geometric error as ours / theirs)")
     for lab in dict.fromkeys(r["row"] for r in rows):
-        d = np.array([r["dpsnr"] for r in rows if r["row"] == lab])
-        print(f"{lab}: mean ΔPSNR {d.mean():+.2f} dB, worst {d.min():+.2f} dB over {len(d)} meshes")
+        d = np.array([r["dpsnr"] for r in rows if r["row"] == lab and r["dpsnr"] is not None])
+        if len(d):
+            print(f"{lab}: mean ΔPSNR {d.mean():+.2f} dB, worst {d.min():+.2f} dB over {len(d)} "
+                  f"meshes")
+        alone = [r["mesh"] for r in rows if r["row"] == lab and r["dpsnr"] is None]
+        if alone:
+            print(f"{lab}: no micromesh-tools output to compare with for {', '.join(alone)} "
+                  f"(put it in {BASELINES}/NAME/out_NAME.gltf)")
+
+
+def _against(o: dict, t: dict | None) -> dict:
+    """The columns that compare ours with micromesh-tools' (None without its output)."""
+    if t is None:
+        return dict.fromkeys(("dpsnr", "psnr_mmt", "storage", "disk", "shell", "iso_mmt",
+                              "geom_err", "base_f_mmt"))
+    return {"dpsnr": round(o["psnr"] - t["psnr"], 2), "psnr_mmt": round(t["psnr"], 2),
+            "storage": round(o["bytes"] / t["bytes"], 3), "disk": round(o["disk"] / t["disk"], 3),
+            "shell": round(o["shell"] / t["shell"], 3), "iso_mmt": round(t["iso_base"], 3),
+            "geom_err": round(o["geom_err"] / t["geom_err"], 3), "base_f_mmt": t["base_faces"]}
 
 
 if __name__ == "__main__":
