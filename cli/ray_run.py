@@ -13,6 +13,7 @@ input and output folders at the same paths (a shared file system).
 from __future__ import annotations
 
 import logging
+import signal
 import socket
 import sys
 import time
@@ -96,6 +97,9 @@ def _run(ray, args, settings, jobs, sets, skipped, t_start) -> int:
             out.name, out.suffixes[-1], gpu)] = i
     progress = InputsProgress(len(jobs))
     pending = list(refs)
+    # Ctrl-C raises KeyboardInterrupt, as in the serial run (``cli.interrupt``), also where
+    # SIGINT came ignored from the parent (a shell's background job: Python then leaves it so)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         for r in records:
             if r is not None:

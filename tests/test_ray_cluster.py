@@ -71,11 +71,14 @@ def _kill_during_a_task(cluster: LocalCluster, out: Path, driver: subprocess.Pop
 
 
 def _driver(lib: Path, out: Path, cluster: LocalCluster, log: Path) -> subprocess.Popen:
+    """batch.py --ray started as a shell's background job starts it: SIGINT ignored (Python
+    then installs no handler of its own; batch.py must, or Ctrl-C and kill -INT go unseen)."""
     with open(log, "w") as f:
         return subprocess.Popen([sys.executable, str(ROOT / "batch.py"), "--input", str(lib),
                                  "--output", str(out), *TINY, "--ray", cluster.address],
                                 stdout=f, stderr=subprocess.PIPE, text=True, cwd=ROOT,
-                                env=cluster.env)
+                                env=cluster.env,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
 
 
 def _interrupt_after_one(out: Path, driver: subprocess.Popen) -> None:
