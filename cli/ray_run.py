@@ -13,13 +13,13 @@ input and output folders at the same paths (a shared file system).
 from __future__ import annotations
 
 import logging
-import signal
 import socket
 import sys
 import time
 from pathlib import Path
 
 from .args import BatchError
+from .interrupt import Interrupt
 
 BATCH_PY = Path(__file__).resolve().parents[1] / "batch.py"
 CANCEL_WAIT_S = 20      # Ctrl-C: how long the cancelled tasks' workers may take to end
@@ -97,9 +97,9 @@ def _run(ray, args, settings, jobs, sets, skipped, t_start) -> int:
             out.name, out.suffixes[-1], gpu)] = i
     progress = InputsProgress(len(jobs))
     pending = list(refs)
-    # Ctrl-C raises KeyboardInterrupt, as in the serial run (``cli.interrupt``), also where
-    # SIGINT came ignored from the parent (a shell's background job: Python then leaves it so)
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+    # Ctrl-C raises KeyboardInterrupt (no construction runs here), by the serial run's handler,
+    # also where SIGINT came ignored from the parent (a shell's background job)
+    Interrupt().install()
     try:
         for r in records:
             if r is not None:
