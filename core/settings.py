@@ -94,7 +94,7 @@ class ConstructSettings:
     fold_bounds: bool = True         # fold the tight bounds into base and directions: the
                                      # result is what a .bary file holds (core.bounds.baked)
     lp_bounds: bool = True           # fold the least-volume bounds first and fit again
-                                     # (core.bounds.lp_bounds; ours): a thinner shell
+                                     # (core.least_volume.lp_bounds; ours): a thinner shell
     polish_steps: int = 40           # then image steps on the values within those bounds
                                      # (core.construct.polish; ours; 0: none)
 

@@ -7,9 +7,10 @@ from hypothesis import given, settings, strategies as st
 
 from shapes import icosphere
 from core.bounds import (
-    BoundsError, DirectionBounds, baked, lp_bounds, micromesh_shell_volume, normalized_values,
-    prismoid_volumes, shell_volume, shell_weights, tight_bounds,
+    BoundsError, DirectionBounds, baked, micromesh_shell_volume, normalized_values,
+    prismoid_volumes, shell_volume, tight_bounds,
 )
+from core.least_volume import lp_bounds, shell_weights
 from core.micromesh import MicroMesh
 
 

@@ -13,7 +13,8 @@ import time
 
 import numpy as np
 
-from ..bounds import baked, lp_bounds, micromesh_shell_volume, tight_bounds, unit_bounds
+from ..bounds import baked, micromesh_shell_volume, tight_bounds, unit_bounds
+from ..least_volume import lp_bounds
 from ..mesh import TriMesh
 from ..micromesh import MicroMesh
 from ..mesh_levels import balance_levels
@@ -72,7 +73,7 @@ def finalise(run: RunState, mm: MicroMesh, reference: TriMesh, base: TriMesh,
 
 # A thinner shell is kept where the metrics' image error (the MSE behind the report's PSNR)
 # rises by at most this factor (0.04 dB); the least-volume bounds are tried with these
-# smoothings in turn (``core.bounds.lp_bounds``), until one is kept.
+# smoothings in turn (``core.least_volume.lp_bounds``), until one is kept.
 _IMAGE_TOLERANCE = 1.01
 _SMOOTHINGS = (0.0, 0.25, 0.5, 1.0, 2.0)
 
@@ -81,7 +82,7 @@ def folded(run: RunState, mm: MicroMesh, samples, error: float | None = None
            ) -> tuple[MicroMesh, float | None]:
     """``mm`` with bounds folded into its base and directions (``core.bounds.baked``): its
     tight bounds, or, after a fit (``samples``) and with ``lp_bounds``, thinner ones: the
-    least-volume bounds (``core.bounds.lp_bounds``), else the same drawn smoother where the
+    least-volume bounds (``core.least_volume.lp_bounds``), else the same drawn smoother where the
     directions differ, which a file holds more exactly (``_SMOOTHINGS``), each with the
     displacements fitted again under it (:func:`_refitted`). The first whose image error
     from the metrics' views (``scene.image_error``) is at most 1 % above the tight bounds'
