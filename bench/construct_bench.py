@@ -13,11 +13,14 @@ minus that of our float tessellation (``--ply``): what the 11-bit file loses. ``
 alternative.
 
     python bench/construct_bench.py [--meshes NAME ...] [--generated [NAME ...]]
-        [--set key=value ...] [--staged] [--judge-python PATH] [--out DIR] [--json FILE]
+        [--set key=value ...] [--staged] [--baselines DIR] [--judge-python PATH] [--out DIR]
+        [--json FILE]
 
 ``--generated`` runs the meshes ``bench/generated_meshes.py`` makes (high genus, many parts,
 a 871k-face scan-like surface), judged against themselves; micromesh-tools' columns stay
-empty until its outputs for them are in ``../shared/baselines/NAME/``.
+empty until its outputs for them are in ``../shared/baselines/NAME/`` or in the folder
+``--baselines`` names (its ``NAME/out_NAME.gltf``, made as ``../shared/baselines/README.md``
+says).
 
 The judge needs its own environment (``python3 -m venv V && V/bin/pip install -r
 ../shared/judge/requirements.txt``); give its interpreter with ``--judge-python`` or
@@ -65,11 +68,12 @@ def run_batch(mesh: Path, out: Path, overrides: list[str], extra: list[str]) -> 
     return json.loads((out / f"{mesh.stem}.metrics.json").read_text())["metrics"], wall
 
 
-def theirs(name: str, mesh: Path, python: str, cache: Path) -> dict | None:
-    """The judge's figures for micromesh-tools' file, or None where it has none for ``name``
-    (the generated meshes until their outputs are put in ../shared/baselines)."""
-    path = BASELINES / name / f"out_{name}.gltf"
-    if not path.exists():
+def theirs(name: str, mesh: Path, python: str, cache: Path, baselines: list[Path]) -> dict | None:
+    """The judge's figures for micromesh-tools' file (the first of ``baselines`` that has
+    ``NAME/out_NAME.gltf``), or None where none has it."""
+    path = next((b / name / f"out_{name}.gltf" for b in baselines
+                 if (b / name / f"out_{name}.gltf").exists()), None)
+    if path is None:
         return None
     j = judge(python, mesh, path, cache / f"theirs_{name}.json")
     return {"psnr": j["render"]["psnr_full"], "geom_err": j["geom_error"]["ref_to_mm"]["avg"],
@@ -108,6 +112,9 @@ def main() -> None:
     p.add_argument("--generated", nargs="*", default=None, metavar="NAME",
                    help="the meshes of bench/generated_meshes.py (all, or those named): "
                         "instead of the shared ones, or besides those --meshes names")
+    p.add_argument("--baselines", type=Path, default=None, metavar="DIR",
+                   help="micromesh-tools' outputs (DIR/NAME/out_NAME.gltf) besides those of "
+                        "../shared/baselines, looked up first")
     p.add_argument("--judge-python", default=os.environ.get("MICROMESH_JUDGE_PYTHON",
                                                             str(SHARED / "judge" / "venv" / "bin" / "python")))
     p.add_argument("--out", default="/tmp/micromesh_construct_bench")
@@ -128,7 +135,8 @@ def main() -> None:
         name = mesh.stem
         out = Path(args.out) / label.replace("/", "_") / name
         out.mkdir(parents=True, exist_ok=True)
-        t = theirs(name, mesh, args.judge_python, Path(args.out))
+        t = theirs(name, mesh, args.judge_python, Path(args.out),
+                   [b for b in (args.baselines, BASELINES) if b is not None])
         rows_here = [("ours", ours(mesh, label, args.judge_python, out, args.set, []))]
         if args.staged:
             sout = out / "staged"
@@ -158,7 +166,7 @@ def main() -> None:
         alone = [r["mesh"] for r in rows if r["row"] == lab and r["dpsnr"] is None]
         if alone:
             print(f"{lab}: no micromesh-tools output to compare with for {', '.join(alone)} "
-                  f"(put it in {BASELINES}/NAME/out_NAME.gltf)")
+                  f"(put it in {BASELINES}/NAME/out_NAME.gltf or give --baselines)")
 
 
 def _against(o: dict, t: dict | None) -> dict:
