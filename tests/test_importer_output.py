@@ -8,22 +8,19 @@ import sys
 
 import pytest
 
-from operators.importer_output import failure, quiet
-
-
-def _c_library():
-    try:
-        return ctypes.CDLL(None)
-    except OSError:
-        pytest.skip("no C library to print with")
+from operators.importer_output import _flush, failure, quiet
 
 
 def _c_printf(text: bytes) -> None:
-    _c_library().printf(text)     # buffered by C's stdio: flushed inside quiet()
+    try:
+        libc = ctypes.CDLL(None)
+    except OSError:
+        pytest.skip("no C library to print with")
+    libc.printf(text)             # buffered by C's stdio: flushed inside quiet()
 
 
 def test_everything_written_to_1_and_2_is_captured(capfd):
-    _c_library().fflush(None)     # what earlier tests (bpy's "Read blend: ...") left in C's
+    _flush()                      # what earlier tests (bpy's "Read blend: ...") left in C's
     capfd.readouterr()            # buffer belongs before the block, not in it
     with quiet() as out:
         print("from python")
