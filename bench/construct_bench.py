@@ -33,6 +33,7 @@ import os
 import subprocess
 import sys
 import time
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -75,7 +76,8 @@ def theirs(name: str, mesh: Path, python: str, cache: Path, baselines: list[Path
                  if (b / name / f"out_{name}.gltf").exists()), None)
     if path is None:
         return None
-    j = judge(python, mesh, path, cache / f"theirs_{name}.json")
+    tag = zlib.crc32(str(path.resolve()).encode())          # one cache per baselines folder
+    j = judge(python, mesh, path, cache / f"theirs_{name}_{tag:08x}.json")
     return {"psnr": j["render"]["psnr_full"], "geom_err": j["geom_error"]["ref_to_mm"]["avg"],
             "shell": j["shell"]["shell_volume_tight"], "bytes": j["storage"]["mmt_formula_bytes"],
             "disk": j["storage"]["disk_bytes_bin_bary"],
