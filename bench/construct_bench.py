@@ -17,8 +17,9 @@ alternative.
         [--json FILE]
 
 ``--generated`` runs the meshes ``bench/generated_meshes.py`` makes (high genus, many parts,
-a 871k-face scan-like surface), judged against themselves; micromesh-tools' columns stay
-empty until its outputs for them are in ``../shared/baselines/NAME/`` or in the folder
+a 871k-face scan-like surface and the same surface without its noise), judged against
+themselves; micromesh-tools' columns stay empty until its outputs for them are in
+``../shared/baselines/NAME/`` or in the folder
 ``--baselines`` names (its ``NAME/out_NAME.gltf``, made as ``../shared/baselines/README.md``
 says).
 

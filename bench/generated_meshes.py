@@ -1,7 +1,8 @@
 """Meshes made here, for the shapes ../shared/meshes lacks: parts of high genus, an assembly
-of many parts and a large scan-like surface (issue 48). Deterministic: the same PLY bytes on
-every machine, so micromesh-tools' outputs for them can be made once elsewhere and put beside
-the shared ones (``../shared/baselines/NAME/out_NAME.gltf``).
+of many parts and a large scan-like surface, with that surface without its noise as a control
+(issue 48). Deterministic: the same PLY bytes on every machine, so micromesh-tools' outputs
+for them can be made once elsewhere and put beside the shared ones
+(``../shared/baselines/NAME/out_NAME.gltf``).
 
     python bench/generated_meshes.py OUT_DIR [NAME ...]     # writes OUT_DIR/NAME.ply
 """
@@ -50,15 +51,18 @@ def assembly(parts: int = 86, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(vs), np.concatenate(fs)
 
 
-def scan(faces: int = 871_000, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def scan(faces: int = 871_000, seed: int = 0, noisy: bool = True
+         ) -> tuple[np.ndarray, np.ndarray]:
     """A scan-like surface of about ``faces`` faces: a wavy sphere with fine ridges, scanner
     noise along the normals and some 900 faces missing (holes where the scanner saw
-    nothing)."""
+    nothing). ``noisy=False``: the same surface, tessellation and holes without the noise
+    (a control: what the noise alone costs both tools)."""
     v, f = noisy_sphere(faces, amplitude=0.12, seed=seed)
     rng = np.random.default_rng(seed + 1)
     n = v / np.linalg.norm(v, axis=1, keepdims=True)
     ridges = 0.004 * np.sin(60.0 * n[:, 0] + 40.0 * n[:, 1] ** 2) * np.cos(45.0 * n[:, 2])
-    v = v + n * (ridges + rng.normal(0.0, 2e-4, len(v)))[:, None]
+    noise = rng.normal(0.0, 2e-4, len(v)) * noisy      # drawn either way: the same holes
+    v = v + n * (ridges + noise)[:, None]
     holes = rng.choice(len(f), size=12, replace=False)
     centres = v[f[holes]].mean(1)
     gone = np.zeros(len(f), bool)
@@ -77,6 +81,7 @@ GENERATED = {
     "gen_genus133_77k": lambda: plate(133, 4),
     "gen_parts86": assembly,
     "gen_scan_871k": scan,
+    "gen_scan_smooth_871k": lambda: scan(noisy=False),
 }
 
 
