@@ -15,7 +15,7 @@ from contextlib import contextmanager
 _EXCEPTION = re.compile(r"^[\w.]*(Error|Exception)(: .*)?$")    # "IndexError: ..."
 
 
-def _flush() -> None:
+def flush() -> None:
     """Python's and the C library's buffered output written out (C's buffers would else
     reach the terminal after the descriptors are restored)."""
     for stream in (sys.stdout, sys.stderr):
@@ -37,7 +37,7 @@ def quiet(show: bool = False):
     if show:
         yield captured
         return
-    _flush()
+    flush()
     saved = [os.dup(1), os.dup(2)]
     streams = sys.stdout, sys.stderr    # where these are not descriptors 1 and 2 (pytest)
     try:
@@ -49,7 +49,7 @@ def quiet(show: bool = False):
             try:
                 yield captured
             finally:
-                _flush()
+                flush()
                 sys.stdout, sys.stderr = streams
                 text.close()
                 os.dup2(saved[0], 1)

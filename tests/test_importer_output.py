@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from operators.importer_output import _flush, failure, quiet
+from operators.importer_output import failure, flush, quiet
 
 
 def _c_printf(text: bytes) -> None:
@@ -20,7 +20,7 @@ def _c_printf(text: bytes) -> None:
 
 
 def test_everything_written_to_1_and_2_is_captured(capfd):
-    _flush()                      # what earlier tests (bpy's "Read blend: ...") left in C's
+    flush()                       # what earlier tests (bpy's "Read blend: ...") left in C's
     capfd.readouterr()            # buffer belongs before the block, not in it
     with quiet() as out:
         print("from python")
