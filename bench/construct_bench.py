@@ -19,9 +19,8 @@ alternative.
 ``--generated`` runs the meshes ``bench/generated_meshes.py`` makes (high genus, many parts,
 a 871k-face scan-like surface and the same surface without its noise), judged against
 themselves; micromesh-tools' columns stay empty until its outputs for them are in
-``../shared/baselines/NAME/`` or in the folder
-``--baselines`` names (its ``NAME/out_NAME.gltf``, made as ``../shared/baselines/README.md``
-says).
+``../shared/baselines/NAME/`` or in the folder ``--baselines`` names (its
+``NAME/out_NAME.gltf``, made as ``../shared/baselines/README.md`` says).
 
 The judge needs its own environment (``python3 -m venv V && V/bin/pip install -r
 ../shared/judge/requirements.txt``); give its interpreter with ``--judge-python`` or
@@ -73,8 +72,8 @@ def run_batch(mesh: Path, out: Path, overrides: list[str], extra: list[str]) -> 
 def theirs(name: str, mesh: Path, python: str, cache: Path, baselines: list[Path]) -> dict | None:
     """The judge's figures for micromesh-tools' file (the first of ``baselines`` that has
     ``NAME/out_NAME.gltf``), or None where none has it."""
-    path = next((b / name / f"out_{name}.gltf" for b in baselines
-                 if (b / name / f"out_{name}.gltf").exists()), None)
+    path = next((p for p in (b / name / f"out_{name}.gltf" for b in baselines) if p.exists()),
+                None)
     if path is None:
         return None
     tag = zlib.crc32(str(path.resolve()).encode())          # one cache per baselines folder
