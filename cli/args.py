@@ -6,6 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from ..core.io import formats
+
 DESCRIPTION = "Headless micro-mesh construction: the add-on's workflow on files or the demo."
 SUFFIXES = (".ply", ".obj", ".stl", ".glb", ".gltf", ".fbx", ".usd", ".usda", ".usdc", ".usdz",
             ".blend")
@@ -74,16 +76,18 @@ def parser() -> argparse.ArgumentParser:
                         "'0': none")
     p.add_argument("--cameras", type=int, default=0,
                    help="place this many Fibonacci camera objects and construct with them")
-    p.add_argument("--export", choices=("gltf", "glb", "none"), default="gltf",
-                   help="the micro-mesh for other tools: NAME.gltf + .bin + .bary (default), "
-                        "one NAME.glb, or none")
+    exports = formats.group(formats.MICROMESH)
+    p.add_argument("--export", choices=[f.key for f in exports] + ["none"], default="gltf",
+                   help="the micro-mesh for other tools: " + "; ".join(
+                       f"{f.key}: {f.label}" for f in exports) + "; none (default: gltf)")
     p.add_argument("--values", choices=("r11", "float"), default="r11",
                    help="stored values: 11-bit packed (default) or 32-bit float")
     p.add_argument("--layout", choices=("bird", "umajor"), default="bird",
                    help="micro-vertex order: bird curve (default, the hardware's) or u-major")
     p.add_argument("--maps", type=int, default=0, metavar="RES",
-                   help="also bake RES x RES height and normal maps: NAME_maps in the .blend, "
-                        "NAME_height.exr, NAME_normal.png and NAME_base.gltf (UVs, normal map)")
+                   help="also a RES x RES height map fitted to the input and a normal map on "
+                        "the base (RES a power of two): NAME_maps in the .blend and " + ", ".join(
+                            f"NAME{f.suffixes[0]}" for f in formats.group(formats.MAPS)))
     p.add_argument("--ply", action="store_true", help="also write NAME_micromesh.ply")
     p.add_argument("--force", action="store_true", help="replace results that already exist")
     p.add_argument("--threads", type=int, default=0, help="CPU threads (0: all usable cores)")
@@ -160,7 +164,14 @@ def find_inputs(path: str | None) -> list[Path]:
     return [p]
 
 
-def result_suffixes(args: argparse.Namespace) -> list[str]:
-    """The export's and the maps' files of one result (``operators.result_files``)."""
-    maps = ["_height.exr", "_normal.png", "_base.gltf", "_base.bin"] if args.maps else []
-    return {"gltf": [".gltf", ".bin", ".bary"], "glb": [".glb"], "none": []}[args.export] + maps
+def result_formats(args: argparse.Namespace) -> list:
+    """The output formats of one result (``core.io.formats``): ``--export``'s and, with
+    ``--maps``, all of the maps'."""
+    chosen = [] if args.export == "none" else [formats.FORMATS[args.export]]
+    return chosen + (formats.group(formats.MAPS) if args.maps else [])
+
+
+def result_suffixes(args: argparse.Namespace) -> tuple[list[str], list[str]]:
+    """(the files of one result's formats, the files they may write or not)."""
+    chosen = result_formats(args)
+    return ([s for f in chosen for s in f.suffixes], [s for f in chosen for s in f.optional])

@@ -83,22 +83,30 @@ def _constructed(bpy, source, args, settings, interrupt: Interrupt):
 
 
 def _write_files(bpy, obj, source, outcome, args, out, progress, t0: float) -> None:
-    """The maps (``--maps``), the .blend, the export, the report, ``--ply``'s tessellation
-    and the metrics (last), then the set committed."""
+    """The maps (``--maps``), the .blend, the formats (``--export``, the maps'), the report,
+    ``--ply``'s tessellation and the metrics (last), then the set committed."""
     from ..operators import result_files, writeback
+    from .args import result_formats
 
     m = outcome.metrics
+    maps = None
     if args.maps:
-        m["maps"] = result_files.write_maps(bpy.context, outcome, source, args.maps, out,
-                                            progress, base_obj=obj.micromesh_base)
-        if m["maps"].get("atlas_note"):
-            print(f"[{source.name}] note: {m['maps']['atlas_note']}", flush=True)
+        maps = result_files.scene_maps(bpy.context, outcome, source, args.maps, progress,
+                                       base_obj=obj.micromesh_base)
+        m["maps"] = maps.record
+        if maps.record.get("atlas_note"):
+            print(f"[{source.name}] note: {maps.record['atlas_note']}", flush=True)
         progress.close(complete=True)
     m["total_time_s"] = time.perf_counter() - t0
     bpy.ops.wm.save_as_mainfile(filepath=str(out.temp(".blend")), compress=True)
+    product = result_files.product(outcome, source, args.values, args.layout, maps)
+    records = result_files.write_formats(result_formats(args), product, out)
     if args.export != "none":
-        m["export"] = result_files.write_export(outcome, source, args.export, args.values,
-                                                args.layout, out)
+        m["export"] = records.pop(args.export)
+    if maps is not None:
+        for record in records.values():
+            m["maps"].update({k: v for k, v in record.items() if k != "bytes_by_file"})
+        m["maps"]["bytes"] = {s: n for r in records.values() for s, n in r["bytes_by_file"].items()}
     result_files.write_report(outcome, out)
     if args.ply:
         from ..core.float32_origin import float32_origin

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from ..core.io.output_set import OutputError, OutputSet, check_output_folder, output_names
+from ..core.maps.atlas import AtlasError, checked_resolution
 from ..core.overrides import apply_overrides
 from ..core.settings import SettingsError, preset
 from .args import BatchError, base_overrides, budget_overrides, find_inputs, result_suffixes
@@ -31,8 +32,11 @@ def check_usage(args: argparse.Namespace):
                          "and --set max_level=N)")
     if args.threads < 0:
         raise BatchError("--threads must be >= 0 (0: all usable cores)")
-    if args.maps and not 64 <= args.maps <= 16384:
-        raise BatchError("--maps must be a resolution within 64..16384 (0: no maps)")
+    if args.maps:
+        try:
+            checked_resolution(args.maps)
+        except AtlasError as e:
+            raise BatchError(f"--maps: {e} (0: no maps)") from None
     if args.ray is not None and not inputs:
         raise BatchError("--ray needs --input (a file or a folder of them): the demo runs here")
     out_dir = Path(args.output)
@@ -42,9 +46,10 @@ def check_usage(args: argparse.Namespace):
             raise BatchError("--result-name names the result of one input file")
         names = [args.result_name]
     report = [".report.png", ".report.json"] if settings.compute_metrics else []
-    suffixes = [".blend"] + result_suffixes(args) + report \
-        + (["_micromesh.ply"] if args.ply else []) + [".metrics.json"]
-    sets = [OutputSet(out_dir, n, suffixes) for n in names]
+    files, optional = result_suffixes(args)
+    suffixes = [".blend"] + files + report + (["_micromesh.ply"] if args.ply else []) \
+        + [".metrics.json"]
+    sets = [OutputSet(out_dir, n, suffixes, optional) for n in names]
     try:
         check_output_folder(out_dir)
     except OutputError as e:

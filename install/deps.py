@@ -26,6 +26,7 @@ REQUIREMENTS = {
     "numba": ("numba==0.68.1",),
     "embreex": ("embreex==4.4.0.post1",),
     "xatlas": ("xatlas==0.0.11",),
+    "OpenEXR": ("openexr==3.5.3",),     # the height map's half-float EXR (core.io.images)
     "matplotlib": ("matplotlib==3.10.8",),
     "tqdm": ("tqdm==4.70.1",),          # batch.py's progress bars (plain lines without it)
 }

@@ -1,30 +1,54 @@
-"""A result's files beside its ``.blend`` (``batch.py``): the micro-mesh as glTF + ``.bary``,
-the run report, and the maps for engines, each written into the result's output set
-(``core.io.output_set``) under its temporary name."""
+"""A result's files beside its ``.blend`` (``batch.py``): the formats of
+``core.io.formats`` the options chose (the micro-mesh as glTF + ``.bary``, the maps for
+renderers), the run report, each written into the result's output set
+(``core.io.output_set``) under its temporary name; and the maps made in the scene first."""
 from __future__ import annotations
 
 import json
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.io.maps_files import base_gltf, png
-from ..core.io.micromesh_export import micromesh_files
-from ..core.maps import rebuild_error
-from . import images, maps_op, maps_work, source_texture, writeback
+from ..core.io import formats
+from . import bl_mesh, maps_work, source_texture, writeback
+from .maps_object import maps_object
 from .sources import export_y_up
 
 
-def write_export(outcome, source, container: str, values: str, layout: str, out) -> dict:
-    """``NAME.gltf`` + ``.bin`` + ``.bary`` (or ``NAME.glb``) in the input file's coordinates
-    (what Blender's importers turned Z-up goes back to Y-up); what the metrics record."""
-    files, rep = micromesh_files(out.final(f".{container}"), outcome.micromesh, outcome.bounds,
-                                 value_format=values, layout=layout, y_up=export_y_up(source))
-    for path, data in files:
-        out.temp(path.suffix).write_bytes(data)
-    return {"files": [p.name for p, _ in files], "bytes": rep.bytes, "values": values,
-            "layout": layout, "quantization_max": rep.quantization_max,
-            "quantization_rms": rep.quantization_rms}
+@dataclass
+class SceneMaps:
+    """The maps made for a result: what the files are written from, and what the metrics
+    record of them."""
+
+    baked: maps_work.Baked
+    textures: dict          # the carried textures by glTF slot (``gltf_textures``)
+    record: dict
+
+
+def write_formats(chosen: list, product: formats.Product, out) -> dict:
+    """The ``chosen`` formats' files of ``product`` into ``out``; {format key: what its
+    writer records, with its files' bytes}."""
+    records = {}
+    for fmt in chosen:
+        files, record = formats.write(fmt, product, out.name)
+        for suffix, data in files.items():
+            out.temp(suffix).write_bytes(data)
+        records[fmt.key] = {**record, "bytes_by_file": {s: len(d) for s, d in files.items()}}
+    return records
+
+
+def product(outcome, source, values: str = "r11", layout: str = "bird",
+            maps: SceneMaps | None = None) -> formats.Product:
+    """What the formats write of ``outcome`` (and its ``maps``), in the input file's
+    coordinates (what Blender's importers turned Z-up goes back to Y-up)."""
+    p = formats.Product(outcome.micromesh, outcome.bounds, y_up=export_y_up(source),
+                        values=values, layout=layout)
+    if maps is not None:
+        p.maps = maps.baked.maps
+        p.normal_map = engine_normal_map(maps.baked)
+        p.textures = maps.textures
+    return p
 
 
 def write_report(outcome, out) -> None:
@@ -65,42 +89,25 @@ def engine_normal_map(baked: maps_work.Baked) -> np.ndarray:
     return baked.maps.normal if baked.base_normal is None else baked.base_normal
 
 
-def write_maps(context, outcome, source, resolution: int, out, progress,
-               base_obj=None) -> dict:
-    """Height and normal maps: ``<source>_maps`` in the scene (images packed) and, for
-    engines, ``NAME_height.exr``, ``NAME_normal.png`` (16-bit; :func:`engine_normal_map`) and
-    ``NAME_base.gltf`` (UVs, normals, tangents, the normal map); where the source's material
-    has textures, they are carried onto the atlas too (base colour, metallic and roughness,
-    emission: the glTF's ``NAME_basecolor.png``, ``NAME_metallicroughness.png``,
-    ``NAME_emissive.png``); how well
-    the height map rebuilds the micro-mesh. On ``base_obj``'s own UV map where it has one that
-    fits (``maps_work.own_atlas``), else a new atlas."""
-    import bpy
-
-    mm, name = outcome.micromesh, out.name
+def scene_maps(context, outcome, source, resolution: int, progress,
+               base_obj=None) -> SceneMaps:
+    """The base with a height map fitted to ``source`` and a normal map: ``<source>_maps`` in
+    the scene (images packed), the source's textures carried onto the atlas where its
+    material has them (base colour, metallic and roughness, emission); what the formats
+    write for renderers (``core.io.formats``, group ``maps``). On ``base_obj``'s own UV map
+    where it has one that fits (``maps_work.own_atlas``), else a new atlas. The record: the
+    fit's notes (the seam gaps among them, over the diagonal)."""
+    mm = outcome.micromesh
     t = time.perf_counter()
     textures = source_texture.read(source)
     atlas, note = maps_work.own_atlas(base_obj, mm, resolution)
-    baked = maps_work.bake_with_textures(mm, resolution, textures, progress, lambda: False,
-                                         atlas=atlas, base_normal=True)
-    maps, carried = baked.maps, baked.carried
-    obj = maps_op.maps_object(context, source, mm, maps, f"{source.name}_maps")
-    img = images.image(f"{name}_height_file", maps.height, path=str(out.temp("_height.exr")))
-    bpy.data.images.remove(img)
-    out.temp("_normal.png").write_bytes(png(engine_normal_map(baked)))
-    uris = {}
-    if carried:
-        source_texture.carry_textures(obj, textures, carried)
-        for slot, pixels in gltf_textures(textures, carried).items():
-            suffix = "_" + slot.replace("Texture", "").lower() + ".png"
-            out.temp(suffix).write_bytes(png(np.clip(pixels, 0.0, 1.0), bits=8))
-            uris[slot] = name + suffix
-    for path, data in base_gltf(out.final("_base.gltf"), mm, maps, f"{name}_normal.png",
-                                f"{name}_height.exr", y_up=export_y_up(source),
-                                textures=uris):
-        out.temp(path.name[len(name):]).write_bytes(data)
-    err = rebuild_error(mm, maps)
-    return {"resolution": resolution, "time_s": time.perf_counter() - t,
-            "own_uvs": atlas is not None, "atlas_note": note,
-            "rebuild_rms": float(np.sqrt((err ** 2).mean()) / mm.base.bbox_diagonal),
-            "rebuild_max": float(err.max(initial=0.0) / mm.base.bbox_diagonal)}
+    baked = maps_work.bake_with_textures(mm, bl_mesh.mesh_to_arrays(source), resolution,
+                                         textures, progress, lambda: False, atlas=atlas,
+                                         base_normal=True)
+    obj = maps_object(context, source, mm, baked.maps, f"{source.name}_maps")
+    slots = {}
+    if baked.carried:
+        source_texture.carry_textures(obj, textures, baked.carried)
+        slots = gltf_textures(textures, baked.carried)
+    return SceneMaps(baked, slots, {**baked.maps.notes, "time_s": time.perf_counter() - t,
+                                    "own_uvs": atlas is not None, "atlas_note": note})

@@ -154,7 +154,10 @@ def test_a_broken_file_in_a_folder_fails_alone(inputs, tmp_path):
 
 
 def test_budget_and_base_options_become_settings():
-    from cli import args as batch    # batch.py's options (cli/args.py)
+    from micromesh_path import ensure_package
+
+    ensure_package()
+    from micromesh.cli import args as batch    # batch.py's options (cli/args.py)
 
     assert batch.budget_overrides("2.5x") == ["budget_ratio=2.5", "budget_micro_triangles=0",
                                               "budget_bytes=0"]
@@ -279,19 +282,26 @@ def test_bad_geometry_is_refused_not_repaired(tmp_path, body, reason):
 
 
 def test_maps_for_engines(inputs, tmp_path):
-    """--maps: the maps object in the .blend, the EXR height map, the 16-bit PNG normal map and
-    the base as glTF with UVs and the normal map, all in the result's set."""
+    """--maps: the maps object in the .blend, the height map fitted to the source as a 16-bit
+    PNG (read by the glTF's KHR_materials_displacement and the USD's UsdUVTexture) and a
+    half-float EXR, the 16-bit PNG normal map, the base as glTF and as USD, all in the
+    result's set; the seams closed."""
     out = tmp_path / "out"
     r = run_batch("--input", inputs / "ball.ply", "--output", out, *QUICK, "--maps", "128",
                   "--export", "none")
     assert r.returncode == 0, r.stdout + r.stderr
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        ["ball.blend", "ball_height.exr", "ball_normal.png", "ball_base.gltf", "ball_base.bin",
-         "ball.report.png", "ball.report.json", "ball.metrics.json"])
+        ["ball.blend", "ball_height.png", "ball_height.exr", "ball_normal.png", "ball_base.gltf",
+         "ball_base.bin", "ball.usda", "ball.report.png", "ball.report.json",
+         "ball.metrics.json"])
     m = json.loads((out / "ball.metrics.json").read_text())["metrics"]
-    assert m["maps"]["resolution"] == 128 and 0 < m["maps"]["rebuild_rms"] < 0.01
+    assert m["maps"]["resolution"] == 128 and m["maps"]["level"] == 4
+    assert max(m["maps"]["seam_gap_max"].values()) < 1e-5
+    assert m["maps"]["bytes"]["_height.png"] == (out / "ball_height.png").stat().st_size
     png = (out / "ball_normal.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and png[16:26] == bytes.fromhex("00000080000000801002")
+    height = (out / "ball_height.png").read_bytes()                   # 16-bit grey
+    assert height[16:26] == bytes.fromhex("00000080000000801000")
     assert (out / "ball_height.exr").read_bytes()[:4] == b"\x76\x2f\x31\x01"   # OpenEXR magic
     from micromesh_path import ensure_package
 
@@ -304,6 +314,12 @@ def test_maps_for_engines(inputs, tmp_path):
     assert uv.min() >= 0 and uv.max() <= 1 and len(uv) == len(doc.accessor(prim["attributes"]
                                                                           ["POSITION"]))
     assert doc.doc["images"][0]["uri"] == "ball_normal.png"
+    ext = doc.doc["materials"][0]["extensions"]["KHR_materials_displacement"]
+    tex = doc.doc["textures"][ext["displacementGeometryTexture"]["index"]]
+    assert doc.doc["images"][tex["source"]]["uri"] == "ball_height.png"
+    assert ext["displacementGeometryFactor"] == pytest.approx(m["maps"]["height_factor"])
+    assert "KHR_materials_displacement" in doc.doc["extensionsUsed"]
+    assert "@ball_height.png@" in (out / "ball.usda").read_text()
     bpy.ops.wm.open_mainfile(filepath=str(out / "ball.blend"))
     assert bpy.data.objects["ball_maps"].modifiers.get("MicroMesh Height") is not None
     bpy.ops.wm.read_factory_settings(use_empty=True)

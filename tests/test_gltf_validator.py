@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.io.maps_files import base_gltf, png
+from core.io.images import HeightCode, png
+from core.io.maps_files import base_gltf
 from core.io.micromesh_export import write_micromesh
 from core.maps import bake_maps
 from core.mesh import TriMesh
@@ -48,7 +49,9 @@ def test_exports_validate_without_errors_or_warnings(tmp_path):
                 f = tmp_path / f"{fmt}_{layout}{ext}"
                 write_micromesh(f, mm, value_format=fmt, layout=layout, y_up=ext == ".glb")
                 files.append(str(f))
-    maps = bake_maps(mm, 64)                       # the maps path: base + UVs + normal map
+    maps = bake_maps(mm, 64)              # the maps path: base + UVs + height and normal maps
+    code = HeightCode.spanning(maps.height)
+    (tmp_path / "h.png").write_bytes(png(code.values(maps.height)))
     (tmp_path / "n.png").write_bytes(png(maps.normal))
     (tmp_path / "c.png").write_bytes(png(np.full((64, 64, 4), 0.5), bits=8))
     (tmp_path / "mr.png").write_bytes(png(np.full((64, 64, 3), 0.5), bits=8))
@@ -56,8 +59,8 @@ def test_exports_validate_without_errors_or_warnings(tmp_path):
     for name, textures in (("base", {"baseColorTexture": "c.png"}),
                            ("textured", {"baseColorTexture": "c.png", "emissiveTexture": "e.png",
                                          "metallicRoughnessTexture": "mr.png"})):
-        for path, data in base_gltf(tmp_path / f"{name}.gltf", mm, maps, "n.png", "h.exr",
-                                    textures=textures):
+        for path, data in base_gltf(tmp_path / f"{name}.gltf", mm, maps, "n.png", "h.png",
+                                    code, textures=textures):
             path.write_bytes(data)
         files.append(str(tmp_path / f"{name}.gltf"))
     r = subprocess.run([node, str(SCRIPT), *files], capture_output=True, text=True,

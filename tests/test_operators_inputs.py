@@ -290,14 +290,14 @@ def test_bake_maps_carries_the_source_normal_map_through_a_normal_map_node(scene
     got = got.reshape(-1, 4)[:, :3]
     # 0.5 as a byte is 128 / 255: a tilt of one step, turned into the atlas' frame, in steps
     assert np.abs(got - [0.5, 0.5, 1.0]).max() < 1.6 / 255
-    from micromesh.operators import maps_work, result_files, source_texture, writeback
+    from micromesh.operators import maps_work, result_files, source_texture
 
     textures = source_texture.read(src)
     assert [t.socket for t in textures.images] == ["Normal"]
     assert textures.normal_strength == pytest.approx(0.6)
     mm = writeback.load_outcome(bpy.data.objects[f"{src.name}_micromesh"]).micromesh
-    baked = maps_work.bake_with_textures(mm, 128, textures, lambda p: None, lambda: False,
-                                         base_normal=True)
+    baked = maps_work.bake_with_textures(mm, bl_mesh.mesh_to_arrays(src), 128, textures,
+                                         lambda p: None, lambda: False, base_normal=True)
     maps = baked.maps
     assert baked.base_normal is not None and len(baked.carried) == 1
     engine = result_files.engine_normal_map(baked)[maps.filled] * 2 - 1

@@ -46,22 +46,25 @@ class OutputSet:
     """The files ``folder/name + suffix`` of one result. Write each to :meth:`temp`, then
     :meth:`commit`; :meth:`discard` (or leaving a ``with`` block by an exception) removes
     what was written. ``suffixes[-1]`` is the marker: renamed last, its presence means the
-    set is complete."""
+    set is complete. ``optional`` suffixes are files a result may have or not (the source's
+    textures carried onto the maps): moved in with the others where written."""
 
-    def __init__(self, folder: Path, name: str, suffixes: list[str]):
+    def __init__(self, folder: Path, name: str, suffixes: list[str],
+                 optional: list[str] = ()):
         self.folder, self.name, self.suffixes = Path(folder), name, list(suffixes)
+        self.optional = [s for s in optional if s not in self.suffixes]
 
     def final(self, suffix: str) -> Path:
         return self.folder / f"{self.name}{suffix}"
 
     def temp(self, suffix: str) -> Path:
         """Where to write the file that becomes :meth:`final` (same folder, same extension)."""
-        if suffix not in self.suffixes:
+        if suffix not in self.suffixes and suffix not in self.optional:
             raise OutputError(f"'{suffix}' is not one of this set's files {self.suffixes}")
         return self.folder / f".{self.name}.partial-{os.getpid()}{suffix}"
 
     def existing(self) -> list[Path]:
-        return [self.final(s) for s in self.suffixes if self.final(s).exists()]
+        return [self.final(s) for s in self.suffixes + self.optional if self.final(s).exists()]
 
     def commit(self) -> None:
         missing = [s for s in self.suffixes if not self.temp(s).exists()]
@@ -70,11 +73,16 @@ class OutputSet:
         marker = self.final(self.suffixes[-1])
         if marker.exists():            # replacing a finished set: unmark it first
             marker.unlink()
+        for s in self.optional:        # an earlier result's extra files go with it
+            if self.temp(s).exists():
+                os.replace(self.temp(s), self.final(s))
+            else:
+                self.final(s).unlink(missing_ok=True)
         for s in self.suffixes:
             os.replace(self.temp(s), self.final(s))
 
     def discard(self) -> None:
-        for s in self.suffixes:
+        for s in self.suffixes + self.optional:
             self.temp(s).unlink(missing_ok=True)
 
     def __enter__(self) -> "OutputSet":

@@ -51,6 +51,34 @@ def uv_atlas(base: TriMesh, resolution: int, padding: int = 4) -> Atlas:
                  np.asarray(vmap, np.int64))
 
 
+# A map's size: a power of two (what mipmaps and every texture API take) within these.
+MIN_RESOLUTION, MAX_RESOLUTION = 64, 16384
+
+
+def checked_resolution(resolution) -> int:
+    """``resolution`` as an int, refused (:class:`AtlasError`) unless it is a power of two
+    within :data:`MIN_RESOLUTION`..:data:`MAX_RESOLUTION`."""
+    r = int(resolution) if float(resolution).is_integer() else -1
+    if not MIN_RESOLUTION <= r <= MAX_RESOLUTION or r & (r - 1):
+        raise AtlasError(f"a map's resolution must be a power of two within "
+                         f"{MIN_RESOLUTION}..{MAX_RESOLUTION}, got {resolution}")
+    return r
+
+
+def check_room(atlas: Atlas, resolution: int) -> float:
+    """The charts' area in texels per base face at ``resolution``²; refused
+    (:class:`AtlasError`) below one: a base with more faces than the map has texels for."""
+    c = atlas.corner_uv * resolution
+    area = 0.5 * np.abs((c[:, 1, 0] - c[:, 0, 0]) * (c[:, 2, 1] - c[:, 0, 1])
+                        - (c[:, 2, 0] - c[:, 0, 0]) * (c[:, 1, 1] - c[:, 0, 1])).sum()
+    per_face = float(area) / max(len(atlas.faces), 1)
+    if per_face < 1.0:
+        raise AtlasError(f"no room for the base's UVs: its {len(atlas.faces)} faces get "
+                         f"{per_face:.2f} texels each at {resolution}²; use a larger "
+                         "resolution or a coarser base")
+    return per_face
+
+
 # Texels that two faces' UV triangles both claim, as a fraction of the charts' area in texels,
 # above which a given UV map is refused (mirrored or stacked islands: one texel, two places).
 MAX_OVERLAP = 0.02

@@ -11,7 +11,7 @@ bitangent n × tangent, flipped where the UVs are mirrored), encoded as RGB = (n
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -29,6 +29,7 @@ class Maps:
     height: np.ndarray   # float32, world units
     normal: np.ndarray   # float32 in [0, 1], tangent space encoded
     filled: np.ndarray   # bool: texels inside a chart (the others are padding or empty)
+    notes: dict = field(default_factory=dict)   # how the height map was made
 
 
 def unit_directions(mm: MicroMesh) -> np.ndarray:
