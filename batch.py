@@ -127,6 +127,12 @@ def run_all(args, settings, jobs: list, sets: list, rows: list) -> None:
         except (BatchError, ValueError) as e:
             rows.append(Row(label, "failed"))
             print(f"batch.py: error: {label}: {e}", file=sys.stderr, flush=True)
+        except OSError as e:           # a full disk, a folder gone: nothing of it is left
+            rows.append(Row(label, "failed"))
+            where = f" ({e.filename})" if e.filename else ""
+            print(f"batch.py: error: {label}: cannot write its files{where}: "
+                  f"{e.strerror or e}; nothing of this input was kept", file=sys.stderr,
+                  flush=True)
         except Exception:
             rows.append(Row(label, "crashed"))
             print(f"batch.py: internal error on {label}:", file=sys.stderr, flush=True)

@@ -1,6 +1,7 @@
-"""File ▸ Export / Import ▸ Micro-Mesh (.gltf/.glb + .bary): a result object to files other
-tools read, and such files (ours, micromesh-tools', NVIDIA's) to a base and a result object with
-the attributes a construction writes. The formats themselves are ``core.io``."""
+"""File ▸ Export / Import ▸ Micro-Mesh: a result object to files other tools read (the formats
+of ``core.io.formats``: the micro-mesh as glTF + ``.bary``, or the base with its maps as glTF,
+USD and images), and micro-mesh files (ours, micromesh-tools', NVIDIA's) to a base and a
+result object with the attributes a construction writes."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -10,11 +11,14 @@ import numpy as np
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
-from ..core.io.micromesh_export import Y_UP, ExportError, write_micromesh
+from ..core.io import formats
+from ..core.io.micromesh_export import Y_UP, ExportError
 from ..core.io.micromesh_import import MicromeshFileError, read_micromesh
+from ..core.io.output_set import OutputSet
 from ..core.metrics import mmt_formula_bytes
 from ..core.outcome import Outcome
 from . import base_ops, bl_mesh, writeback
+from .maps_object import maps_of
 
 Y_UP_HELP = "glTF is Y-up, Blender Z-up: convert as Blender's own glTF exporter does"
 
@@ -33,16 +37,34 @@ def result_object(context) -> bpy.types.Object | None:
     return None
 
 
+MAPS = "MAPS"
+
+
+def _format_items(self, context):
+    """The export's formats, from the table: each micro-mesh format, and the maps' formats
+    together (the base with its height and normal maps). (Blender keeps no reference to
+    the strings: the list is kept here.)"""
+    global _ITEMS
+    _ITEMS = [(f.key.upper(), f.label, f"NAME{', NAME'.join(f.suffixes)}")
+              for f in formats.group(formats.MICROMESH)] + [
+        (MAPS, "Base + height map (glTF, USD, PNG, EXR)",
+         "The base with the height map Bake Maps fitted: " + ", ".join(
+             f"NAME{f.suffixes[0]}" for f in formats.group(formats.MAPS)))]
+    return _ITEMS
+
+
+_ITEMS: list = []
+
+
 class MICROMESH_OT_export(bpy.types.Operator, ExportHelper):
     """Write the micro-mesh as glTF 2.0 with NV_displacement_micromap and a .bary file, for
-    micromesh-tools, NVIDIA's tools and ray tracers"""
+    micromesh-tools, NVIDIA's tools and ray tracers; or the base with its height map (Bake
+    Maps) as glTF with KHR_materials_displacement and as USD, for renderers"""
     bl_idname = "micromesh.export"
     bl_label = "Export Micro-Mesh"
     filename_ext = ".gltf"
     filter_glob: StringProperty(default="*.gltf;*.glb", options={"HIDDEN"})
-    container: EnumProperty(name="Format", items=(
-        ("GLTF", "glTF Separate (.gltf + .bin + .bary)", "Three files side by side"),
-        ("GLB", "glTF Binary (.glb)", "One file, the .bary inside")), default="GLTF")
+    container: EnumProperty(name="Format", items=_format_items)
     values: EnumProperty(name="Values", items=(
         ("r11", "11-bit packed", "eR11_unorm_packed_align32: what hardware and tools expect"),
         ("float", "32-bit float", "eR32_sfloat: larger, no quantisation")), default="r11")
@@ -66,16 +88,40 @@ class MICROMESH_OT_export(bpy.types.Operator, ExportHelper):
     def execute(self, context):
         self.check(context)
         obj = result_object(context)
+        path = Path(self.filepath)
         try:
             out = writeback.load_outcome(obj)
-            rep = write_micromesh(self.filepath, out.micromesh, out.bounds,
-                                  value_format=self.values, layout=self.order, y_up=self.y_up)
-        except (ExportError, ValueError) as e:
+            product = formats.Product(out.micromesh, out.bounds, y_up=self.y_up,
+                                      values=self.values, layout=self.order)
+            if self.container == MAPS:
+                src = obj.micromesh_source or obj
+                product.maps = maps_of(bpy.data.objects.get(f"{src.name}_maps"))
+                if product.maps is None:
+                    raise ValueError(f"'{src.name}' has no maps: Bake Maps first")
+                chosen = formats.group(formats.MAPS)
+            else:
+                chosen = [formats.FORMATS[self.container.lower()]]
+            written = _write(chosen, product, path.parent, path.stem)
+        except (ExportError, ValueError, OSError) as e:
             self.report({"ERROR"}, f"Export failed: {e}")
             return {"CANCELLED"}
-        self.report({"INFO"}, f"Wrote {', '.join(p.name for p in rep.files)} ({rep.bytes:,} B; "
-                              f"quantisation error {rep.quantization_max:.2e} of the diagonal)")
+        size = sum(written.values())
+        self.report({"INFO"}, f"Wrote {', '.join(written)} ({size:,} B)")
         return {"FINISHED"}
+
+
+def _write(chosen: list, product: formats.Product, folder: Path, name: str) -> dict:
+    """The ``chosen`` formats' files in ``folder`` as one set (each under a temporary name
+    first, then all renamed; none left where one fails); {file name: bytes}."""
+    every = [(f, formats.write(f, product, name)[0]) for f in chosen]
+    suffixes = [s for _, files in every for s in files]
+    out = OutputSet(folder, name, suffixes[::-1])      # the first format's main file last
+    with out:
+        for _, files in every:
+            for suffix, data in files.items():
+                out.temp(suffix).write_bytes(data)
+        out.commit()
+    return {f"{name}{s}": len(d) for _, files in every for s, d in files.items()}
 
 
 class MICROMESH_OT_import(bpy.types.Operator, ImportHelper):
@@ -131,7 +177,8 @@ def _unused(name: str) -> str:
 
 
 def _menu_export(self, context):
-    self.layout.operator(MICROMESH_OT_export.bl_idname, text="Micro-Mesh (.gltf/.glb + .bary)")
+    self.layout.operator(MICROMESH_OT_export.bl_idname,
+                         text="Micro-Mesh (.gltf/.glb + .bary, or base + height map)")
 
 
 def _menu_import(self, context):

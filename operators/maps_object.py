@@ -14,10 +14,12 @@ The material also holds the normal map, ready beside the surface shader.
 """
 from __future__ import annotations
 
+import json
+
 import bpy
 import numpy as np
 
-from ..core.maps import Maps, unit_directions
+from ..core.maps import Atlas, Maps, texel_faces, unit_directions
 from ..core.micromesh import MicroMesh
 from . import bl_mesh
 from .images import image
@@ -25,6 +27,8 @@ from .images import image
 GROUP = "MicroMesh Height Map"
 MODIFIER = "MicroMesh Height"
 DIRECTION = "micromesh_unit_direction"
+BASE_VERTEX = "micromesh_base_vertex"       # the base vertex each (seam-split) vertex copies
+NOTES = "micromesh_maps"                    # how the height map was made (JSON)
 ADAPTIVE = bpy.app.version >= (5, 0, 0)     # adaptive subdivision out of Experimental
 
 
@@ -37,6 +41,9 @@ def maps_object(context, source, mm: MicroMesh, maps: Maps, name: str) -> bpy.ty
     uv.data.foreach_set("uv", at.corner_uv.reshape(-1).astype(np.float32))
     a = mesh.attributes.new(DIRECTION, "FLOAT_VECTOR", "POINT")
     a.data.foreach_set("vector", unit_directions(mm)[at.vertex].astype(np.float32).reshape(-1))
+    mesh.attributes.new(BASE_VERTEX, "INT", "POINT").data.foreach_set(
+        "value", at.vertex.astype(np.int32))
+    mesh[NOTES] = json.dumps(maps.notes)
     mesh.shade_smooth()
     obj, reused = bl_mesh.object_with_mesh(context, name, mesh, source,
                                            reuse=lambda o: o.modifiers.get(MODIFIER) is not None)
@@ -61,6 +68,33 @@ def maps_object(context, source, mm: MicroMesh, maps: Maps, name: str) -> bpy.ty
     obj.data.materials.clear()
     obj.data.materials.append(_material(f"{name}_material", normal, height if ADAPTIVE else None))
     return obj
+
+
+def maps_of(obj: bpy.types.Object | None) -> Maps | None:
+    """The maps a maps object holds (its UVs and split vertices as the atlas, its height and
+    normal images), for the files; None where ``obj`` is not one."""
+    if obj is None or obj.type != "MESH" or BASE_VERTEX not in obj.data.attributes:
+        return None
+    mesh = obj.data
+    mat = mesh.materials[0] if len(mesh.materials) else None
+    name = obj.name
+    height, normal = (bpy.data.images.get(f"{name}_{k}") for k in ("height", "normal"))
+    if mat is None or height is None or normal is None:
+        return None
+    _, faces = bl_mesh.mesh_arrays(mesh)
+    vertex = np.empty(len(mesh.vertices), np.int32)
+    mesh.attributes[BASE_VERTEX].data.foreach_get("value", vertex)
+    uv = np.zeros((len(mesh.vertices), 2))
+    uv[faces.reshape(-1)] = bl_mesh.corner_uvs(mesh).reshape(-1, 2)
+    atlas = Atlas(uv, faces.astype(np.int64), vertex.astype(np.int64))
+    w, h = height.size
+    pixels = np.empty(w * h * 4, np.float32)
+    height.pixels.foreach_get(pixels)
+    heights = pixels.reshape(h, w, 4)[..., 0].copy()
+    normal.pixels.foreach_get(pixels)
+    normals = pixels.reshape(h, w, 4)[..., :3].copy()
+    return Maps(atlas, heights, normals, texel_faces(atlas, w, h)[0] >= 0,
+                json.loads(mesh.get(NOTES, "{}")))
 
 
 def _input(ng, name: str) -> str:

@@ -8,9 +8,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..core.construct.reference import oriented_reference
-from ..core.maps import (Atlas, AtlasError, Carry, Maps, atlas_from_uvs, bake_maps, carry,
-                         fit_height_map, uv_atlas)
+from ..core.maps import Atlas, AtlasError, Carry, Maps, atlas_from_uvs, carry
+from ..core.maps.make import LEVEL, make_maps
 from ..core.mesh import TriMesh
 from ..core.micromesh import MicroMesh
 from . import bl_mesh, source_texture
@@ -41,26 +40,15 @@ class Baked(NamedTuple):
 
 def bake_with_textures(mm: MicroMesh, reference: TriMesh | None, resolution: int, textures,
                        progress, should_stop, atlas: Atlas | None = None,
-                       base_normal: bool = False, level: int = 4) -> Baked:
-    """The worker's part of Bake Maps: on ``atlas`` (default: a new one) the height map
-    fitted to ``reference`` (world space; None: to the micro-mesh itself, where the source is
-    gone) for tessellation ``level`` (``core.maps.fit_height_map``), the normal map of the
-    surface it draws (``core.maps.bake_maps``), and the source's textures carried onto it,
-    all in one pass over the texels (``core.maps.carry``). A normal map is carried into the
+                       base_normal: bool = False, level: int = LEVEL) -> Baked:
+    """The worker's part of Bake Maps: on ``atlas`` (default: a new one) the maps of
+    ``core.maps.make_maps`` (the height map fitted to ``reference``, world space, None: to
+    the micro-mesh itself where the source is gone), and the source's textures carried onto
+    it, all in one pass over the texels (``core.maps.carry``). A normal map is carried into the
     atlas' tangent frame about the surface (the maps object renders it on the displaced
     surface); with ``base_normal``, also about the base (for an engine's undisplaced base:
     ``result_files.engine_normal_map``)."""
-    if atlas is None:
-        atlas = uv_atlas(mm.base, resolution)
-    if reference is None:
-        reference = mm.tessellate().to_trimesh()
-    else:
-        reference = oriented_reference(reference)[0]
-    hm = fit_height_map(mm, reference, atlas, resolution, level, progress=progress,
-                        should_stop=should_stop)
-    drawn = bake_maps(hm.surface, resolution, atlas=atlas, progress=progress,
-                      should_stop=should_stop)
-    maps = Maps(atlas, hm.height, drawn.normal, drawn.filled, hm.notes)
+    maps = make_maps(mm, reference, resolution, atlas, level, progress, should_stop)
     if textures is None:
         return Baked(maps, [], None)
     progress({"phase": "texture", "iteration": 0, "total": 1})

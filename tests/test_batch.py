@@ -326,6 +326,33 @@ def test_maps_for_engines(inputs, tmp_path):
     assert m["maps"]["own_uvs"] is False                       # the builder's base: a new atlas
 
 
+@pytest.mark.parametrize("size", ["200k", "900k"])
+def test_a_full_disk_fails_the_input_in_one_line_and_leaves_nothing(inputs, tmp_path, size):
+    """The output folder on a filesystem of ``size`` (a tmpfs mounted in a user namespace of
+    its own): 200k fills while the .blend is written, 900k while the maps' files are. The
+    input fails in one line that says so, and no file of it, whole or partial, is left."""
+    import shutil
+
+    out = tmp_path / "small"
+    out.mkdir()
+    unshare = shutil.which("unshare")
+    mount = f"mount -t tmpfs -o size={size} tmpfs {out}"
+    probe = subprocess.run([unshare or "unshare", "--user", "--map-root-user", "--mount", "sh",
+                            "-c", mount], capture_output=True, text=True) if unshare else None
+    if probe is None or probe.returncode != 0:
+        pytest.skip("no user namespace here to mount a small filesystem in")
+    cmd = " ".join([sys.executable, str(ROOT / "batch.py"), "--input", str(inputs / "ball.ply"),
+                    "--output", str(out), *QUICK, "--maps", "128"])
+    r = subprocess.run([unshare, "--user", "--map-root-user", "--mount", "sh", "-c",
+                        f"{mount} && {cmd}; rc=$?; ls -A {out}; exit $rc"],
+                       capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert r.returncode == 1, r.stdout + r.stderr
+    lines = _error_lines(r.stderr)
+    assert len(lines) == 1 and "No space left on device" in lines[0], r.stderr
+    assert "Traceback" not in r.stderr
+    assert r.stdout.strip().splitlines()[-1].startswith("done: 0/1"), r.stdout   # ls: empty
+
+
 def test_maps_on_the_uvs_a_decimated_base_inherits(tmp_path):
     """--base-method blender carries the source's UVs onto the base, as Make Base does, and
     --maps lays the maps out on them (a grid whose UVs are its x, y in the unit square)."""

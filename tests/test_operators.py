@@ -397,3 +397,31 @@ def test_bake_maps_draws_the_source_through_blender_modifiers(scene):
         assert rms < 0.1 * rms0 and rms < 2e-3, (rms, rms0)
     else:                      # 5.0: Cycles subdivides and displaces at render time
         assert mod.type == "SUBSURF" and mod.use_adaptive_subdivision
+
+
+def test_export_writes_the_maps_bake_maps_fitted(scene, tmp_path):
+    """File ▸ Export ▸ Micro-Mesh, format "Base + height map": the maps object's atlas and
+    images as the maps' formats of core.io.formats (the glTF, the USD, the images), the same
+    heights the maps object holds; refused, with the reason, before Bake Maps."""
+    _make_base(scene)
+    assert bpy.ops.micromesh.construct(method="PROJECTION") == {"FINISHED"}
+    bpy.context.view_layer.objects.active = scene.micromesh.source
+    with pytest.raises(RuntimeError, match="Bake Maps first"):
+        bpy.ops.micromesh.export(filepath=str(tmp_path / "none.gltf"), container="MAPS")
+    assert not list(tmp_path.iterdir())
+    assert bpy.ops.micromesh.bake_maps(resolution=256) == {"FINISHED"}
+    assert bpy.ops.micromesh.export(filepath=str(tmp_path / "rock.gltf"),
+                                    container="MAPS") == {"FINISHED"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        ["rock_base.gltf", "rock_base.bin", "rock_height.png", "rock_height.exr",
+         "rock_normal.png", "rock.usda"])
+    from micromesh.core.io.gltf import Document
+    from micromesh.operators.maps_object import maps_of
+
+    maps = maps_of(bpy.data.objects["rock_maps"])
+    assert maps.notes["level"] == 4 and max(maps.notes["seam_gap_max"].values()) < 1e-5
+    doc = Document(tmp_path / "rock_base.gltf")
+    ext = doc.doc["materials"][0]["extensions"]["KHR_materials_displacement"]
+    lo, hi = float(maps.height.min()), float(maps.height.max())
+    assert ext["displacementGeometryOffset"] == pytest.approx(lo)
+    assert ext["displacementGeometryFactor"] == pytest.approx(hi - lo)

@@ -1,0 +1,46 @@
+"""The maps of a result, as every caller makes them (Bake Maps, ``batch.py --maps``, the
+benchmark): the atlas, the height map fitted to the source (``height_fit``) and the normal
+map of the surface that height map draws (``bake``)."""
+from __future__ import annotations
+
+from typing import Callable
+
+from ..construct.reference import oriented_reference
+from ..mesh import TriMesh
+from ..micromesh import MicroMesh
+from .atlas import Atlas, uv_atlas
+from .bake import Maps, bake_maps
+from .height_fit import fit_height_map
+
+# The tessellation level a height map is fitted for: what a renderer cuts each base triangle
+# into where it shows the detail (the lattice of 4^4 triangles; judged there).
+LEVEL = 4
+
+
+def make_maps(mm: MicroMesh, reference: TriMesh | None, resolution: int,
+              atlas: Atlas | None = None, level: int = LEVEL,
+              progress: Callable[[dict], None] = lambda p: None,
+              should_stop: Callable[[], bool] = lambda: False) -> Maps:
+    """The maps of ``mm`` at ``resolution``² on ``atlas`` (default: a new ``uv_atlas``).
+
+    Args:
+        mm: the result (world space): its base and unit directions carry the maps.
+        reference: the source as read (world space; cleaned here as the construction cleans
+            it); None where it is gone: the height map is fitted to ``mm`` itself.
+        resolution: a power of two within 64..16384.
+        level: the tessellation level the height map is fitted for.
+    Returns:
+        :class:`Maps`: the fitted height, the normal map of the surface it draws at
+        ``level``, the charts' texels, and the fit's notes (seam gaps among them).
+    """
+    if atlas is None:
+        atlas = uv_atlas(mm.base, resolution)
+    if reference is None:
+        reference = mm.tessellate().to_trimesh()
+    else:
+        reference = oriented_reference(reference)[0]
+    hm = fit_height_map(mm, reference, atlas, resolution, level, progress=progress,
+                        should_stop=should_stop)
+    drawn = bake_maps(hm.surface, resolution, atlas=atlas, progress=progress,
+                      should_stop=should_stop)
+    return Maps(atlas, hm.height, drawn.normal, drawn.filled, hm.notes)
