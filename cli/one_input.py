@@ -82,6 +82,15 @@ def _constructed(bpy, source, args, settings, interrupt: Interrupt):
     return outcome, base_uv, progress
 
 
+def _save_blend(bpy, path) -> None:
+    """Save the .blend; Blender 4.2 reports a failed write (a full disk) as a RuntimeError of
+    the operator, later versions as an OSError: both leave here as an OSError."""
+    try:
+        bpy.ops.wm.save_as_mainfile(filepath=str(path), compress=True)
+    except RuntimeError as e:
+        raise OSError(None, str(e).removeprefix("Error: ").strip(), str(path)) from e
+
+
 def _write_files(bpy, obj, source, outcome, args, out, progress, t0: float) -> None:
     """The maps (``--maps``), the .blend, the formats (``--export``, the maps'), the report,
     ``--ply``'s tessellation and the metrics (last), then the set committed."""
@@ -98,7 +107,7 @@ def _write_files(bpy, obj, source, outcome, args, out, progress, t0: float) -> N
             print(f"[{source.name}] note: {maps.record['atlas_note']}", flush=True)
         progress.close(complete=True)
     m["total_time_s"] = time.perf_counter() - t0
-    bpy.ops.wm.save_as_mainfile(filepath=str(out.temp(".blend")), compress=True)
+    _save_blend(bpy, out.temp(".blend"))
     product = result_files.product(outcome, source, args.values, args.layout, maps)
     records = result_files.write_formats(result_formats(args), product, out)
     if args.export != "none":

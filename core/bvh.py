@@ -40,7 +40,9 @@ def build_bvh(tri_lo, tri_hi, cent, leaf_size):  # pragma: no cover - compiled
     """Flat BVH: (node_lo, node_hi, child, start, count, order); ``count > 0`` marks a leaf,
     an inner node's children are ``child`` and ``child + 1``."""
     m = cent.shape[0]
-    cap = 2 * m + 1
+    # a split leaves at least (leaf_size + 1) // 2 triangles on each side: at most that many
+    # leaves, twice as many nodes (2 m + 1 for leaves of one: a third of the build's memory)
+    cap = 2 * (m // max(1, (leaf_size + 1) // 2)) + 3
     node_lo = np.empty((cap, 3))
     node_hi = np.empty((cap, 3))
     child = np.full(cap, -1, np.int64)

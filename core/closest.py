@@ -37,21 +37,19 @@ class ClosestPointIndex:
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray) -> None:
         v, f = _checked(vertices, faces)
-        tri = v[f]                                                   # (m, 3, 3)
+        a, b, c = (v[f[:, k]] for k in range(3))        # (no (m, 3, 3) copy: 72 B a face)
         lo, hi, child, start, count, order = build_bvh(
-            np.ascontiguousarray(tri.min(axis=1)), np.ascontiguousarray(tri.max(axis=1)),
-            np.ascontiguousarray(tri.mean(axis=1)), LEAF_SIZE)
+            np.minimum(np.minimum(a, b), c), np.maximum(np.maximum(a, b), c),
+            (a + b + c) / 3.0, LEAF_SIZE)
         self._fid = order.astype(np.int64)
-        self._set_corners(tri[order])
+        self._set_corners(a[order], b[order], c[order])
         self._nodes = (lo, hi, child, start, count)
         self.n_faces = len(f)
 
-    def _set_corners(self, t: np.ndarray) -> None:
-        """The triangles' corners (m, 3, 3) in leaf order, and which are degenerate."""
-        self._A = np.ascontiguousarray(t[:, 0])
-        self._B = np.ascontiguousarray(t[:, 1])
-        self._C = np.ascontiguousarray(t[:, 2])
-        self._flat = degenerate(self._A, self._B, self._C)
+    def _set_corners(self, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> None:
+        """The triangles' corners (m, 3) each, in leaf order, and which are degenerate."""
+        self._A, self._B, self._C = a, b, c
+        self._flat = degenerate(a, b, c)
 
     @property
     def tree(self) -> tuple[np.ndarray, ...]:
@@ -73,7 +71,8 @@ class ClosestPointIndex:
             raise ClosestPointError(f"the tree holds {len(fid)} faces, got {len(f)}")
         out = cls.__new__(cls)
         out._fid, out.n_faces = fid, len(fid)
-        out._set_corners(v[f[fid]])
+        ff = f[fid]
+        out._set_corners(*(v[ff[:, k]] for k in range(3)))
         out._nodes = (*refit_bvh(out._A, out._B, out._C, child, start, count), child, start,
                       count)
         return out

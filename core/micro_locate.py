@@ -8,20 +8,18 @@ from .level_grid import MAX_LEVEL, level_grid_view, level_triangles_view, snap_t
 from .microtopology import MicroTopology
 
 
-def locate(topo: MicroTopology, faces: np.ndarray, bary: np.ndarray
-            ) -> tuple[np.ndarray, np.ndarray]:
-    """Which micro-vertices and weights a surface point has: base faces (q,) and their
-    barycentrics (q, 3) -> ((q, 3) micro-vertex indices of the micro-triangle holding each
-    point, (q, 3) its barycentrics there), on the levels and edge flags of ``topo``
-    (decimated edges' snapped micro-triangles included)."""
-    L = topo.levels[faces]
-    S = (1 << L).astype(np.int64)
+def grid_cell(levels: np.ndarray | int, bary: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The micro-triangle of a face's uniform lattice at ``levels`` (q,) (or one level)
+    holding each of the points of barycentrics ``bary`` (q, 3) (w, u, v): ((q, 3) its corners
+    as the face's u-major micro-vertex numbers, (q, 3) the points' barycentrics in it)."""
+    S = (1 << np.asarray(levels, np.int64)) * np.ones(len(bary), np.int64)
     U, V = bary[:, 1] * S, bary[:, 2] * S
     iu = np.clip(np.floor(U).astype(np.int64), 0, S - 1)
     iv = np.clip(np.floor(V).astype(np.int64), 0, S - 1 - iu)
     fu, fv = U - iu, V - iv
     up = (fu + fv <= 1.0) | (iu + iv == S - 1)
     s2 = S + 2
+
     def um(u, v):
         return u * s2 - u * (u + 1) // 2 + v
     loc = np.where(up[:, None],
@@ -29,6 +27,19 @@ def locate(topo: MicroTopology, faces: np.ndarray, bary: np.ndarray
                    np.stack([um(iu + 1, iv), um(iu + 1, iv + 1), um(iu, iv + 1)], 1))
     w = np.where(up[:, None], np.stack([1 - fu - fv, fu, fv], 1),
                  np.stack([1 - fv, fu + fv - 1, 1 - fu], 1))
+    return loc, w
+
+
+def locate(topo: MicroTopology, faces: np.ndarray, bary: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """Which micro-vertices and weights a surface point has: base faces (q,) and their
+    barycentrics (q, 3) -> ((q, 3) micro-vertex indices of the micro-triangle holding each
+    point, (q, 3) its barycentrics there), on the levels and edge flags of ``topo``
+    (decimated edges' snapped micro-triangles included)."""
+    L = topo.levels[faces]
+    loc, w = grid_cell(L, bary)
+    S = (1 << L).astype(np.int64)
+    U, V = bary[:, 1] * S, bary[:, 2] * S
 
     # Faces with decimated edges: where the grid triangle touches a snapped vertex, search
     # the snapped micro-triangles of that strip instead.

@@ -1,7 +1,7 @@
 """The exact closest point on one triangle (Ericson's Voronoi-region method, float64), and on
 a segment for degenerate (zero-area) triangles: compiled, called per point and triangle by
 the closest-point traversal (:mod:`core.closest`), and per (point, triangle) pair by
-:func:`pair_distances`."""
+:func:`pair_distances` and :func:`pair_closest`."""
 from __future__ import annotations
 
 import numpy as np
@@ -27,6 +27,24 @@ def pair_distances(points: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.ndarr
     _pair_distances(np.ascontiguousarray(points, dtype=np.float64), A, B, C,
                     degenerate(A, B, C), out)
     return out
+
+
+def pair_closest(points: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.ndarray
+                 ) -> np.ndarray:
+    """(n, 3) the closest point of its own triangle (A, B, C: (n, 3) corners each) to each of
+    ``points`` (n, 3), exact."""
+    A, B, C = (np.ascontiguousarray(x, dtype=np.float64) for x in (A, B, C))
+    out = np.empty((len(A), 3))
+    _pair_closest(np.ascontiguousarray(points, dtype=np.float64), A, B, C,
+                  degenerate(A, B, C), out)
+    return out
+
+
+@kernel(cache=True)
+def _pair_closest(P, A, B, C, flat, out):  # pragma: no cover - compiled
+    for k in range(P.shape[0]):
+        x, y, z, _ = closest_on_triangle(P[k, 0], P[k, 1], P[k, 2], A, B, C, flat, k)
+        out[k, 0], out[k, 1], out[k, 2] = x, y, z
 
 
 @kernel(cache=True)

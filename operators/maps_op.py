@@ -9,6 +9,8 @@ from functools import partial
 import bpy
 from bpy.props import IntProperty
 
+from ..core.maps import AtlasError
+from ..core.maps.atlas import checked_resolution
 from . import bl_mesh, job, source_texture, writeback
 from .files_op import result_object
 from .maps_object import maps_object
@@ -21,7 +23,8 @@ class MICROMESH_OT_bake_maps(bpy.types.Operator):
     bl_idname = "micromesh.bake_maps"
     bl_label = "Bake Maps"
     bl_options = {"REGISTER", "UNDO"}
-    resolution: IntProperty(name="Resolution", default=2048, min=64, max=8192)
+    resolution: IntProperty(name="Resolution", default=2048, min=64, max=16384,
+                            description="Texels per side: a power of two")
 
     @classmethod
     def poll(cls, context):
@@ -55,13 +58,31 @@ class MICROMESH_OT_bake_maps(bpy.types.Operator):
         self.report({"INFO"}, f"{obj.name}: {self.resolution}² {what}")
         return {"FINISHED"}
 
+    def _refused(self) -> bool:
+        """A resolution no map takes, said before any work."""
+        try:
+            checked_resolution(self.resolution)
+        except AtlasError as e:
+            self.report({"ERROR"}, str(e))
+            return True
+        return False
+
     def execute(self, context):
+        if self._refused():
+            return {"CANCELLED"}
         work = self._work(context)
-        return self._finish(context, work(lambda p: None, lambda: False))
+        try:
+            baked = work(lambda p: None, lambda: False)
+        except AtlasError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        return self._finish(context, baked)
 
     def invoke(self, context, event):
         if bpy.app.background or context.window is None:
             return self.execute(context)
+        if self._refused():
+            return {"CANCELLED"}
         return {"RUNNING_MODAL"} if job.start_modal(self, context, self._work(context)) \
             else {"CANCELLED"}
 

@@ -425,3 +425,11 @@ def test_export_writes_the_maps_bake_maps_fitted(scene, tmp_path):
     lo, hi = float(maps.height.min()), float(maps.height.max())
     assert ext["displacementGeometryOffset"] == pytest.approx(lo)
     assert ext["displacementGeometryFactor"] == pytest.approx(hi - lo)
+
+
+def test_bake_maps_refuses_a_resolution_that_is_not_a_power_of_two(scene):
+    _make_base(scene)
+    assert bpy.ops.micromesh.construct(method="PROJECTION") == {"FINISHED"}
+    with pytest.raises(RuntimeError, match="power of two"):
+        bpy.ops.micromesh.bake_maps(resolution=1000)
+    assert bpy.data.objects.get("rock_maps") is None          # nothing was made

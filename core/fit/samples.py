@@ -2,6 +2,8 @@
 least as dense as the micro-triangles they must hold."""
 from __future__ import annotations
 
+from functools import cache, cached_property
+
 import numpy as np
 
 from ..mesh import TriMesh
@@ -19,6 +21,7 @@ class FitError(ValueError):
     """Inputs the fit cannot use."""
 
 
+@cache
 def _subtriangle_centroids(level: int) -> np.ndarray:
     """(4**level, 3) barycentrics of the centroids of a triangle's uniform subdivision."""
     r = 1 << level
@@ -33,7 +36,7 @@ def _subtriangle_centroids(level: int) -> np.ndarray:
 class Samples:
     """Area-weighted points and unit normals on a reference's faces, made a run of faces at a
     time (:meth:`chunks`) rather than held: at a few per micro-triangle they are the largest
-    arrays of a fit (56 bytes a sample). Only the weights (s,) are kept.
+    arrays of a fit (56 bytes a sample). Only a weight per face is kept.
 
     Each face gets the centroids of its uniform subdivision at its level (4**level samples);
     the samples are ordered by level, then face, then centroid. Weights are the area each
@@ -45,36 +48,58 @@ class Samples:
         self.level = np.asarray(level, dtype=np.int64)
         areas = reference.face_areas
         w = np.concatenate([np.repeat(areas[f] / 4 ** lv, 4 ** lv) for lv, f in self._groups()])
-        self.weights = w / max(w.mean(), 1e-300)
+        self._count, self._mean = len(w), max(w.mean(), 1e-300)
+        self._face_weight = areas / 4.0 ** self.level
 
     def __len__(self) -> int:
-        return len(self.weights)
+        return self._count
+
+    @property
+    def weights(self) -> np.ndarray:
+        """(s,) every sample's weight, in order (made on each call)."""
+        return np.concatenate([self._weights(lv, f) for _, lv, f in self.parts()])
+
+    def _weights(self, level: int, faces: np.ndarray) -> np.ndarray:
+        return np.repeat(self._face_weight[faces], 4 ** level) / self._mean
 
     def _groups(self):
         for lv in np.unique(self.level):
             yield int(lv), np.flatnonzero(self.level == lv)
 
+    def parts(self, size: int = CHUNK):
+        """(slice of the samples, level, faces) in order, about ``size`` samples each (whole
+        faces of one level): the runs :meth:`chunks` makes, without their points."""
+        pos = 0
+        for lv, faces in self._groups():
+            step = max(1, size // 4 ** lv)
+            for lo in range(0, len(faces), step):
+                f = faces[lo:lo + step]
+                yield slice(pos, pos + len(f) * 4 ** lv), lv, f
+                pos += len(f) * 4 ** lv
+
+    @cached_property
+    def _normals(self) -> np.ndarray:
+        return self.reference.face_normals
+
+    def points(self, level: int, faces: np.ndarray) -> np.ndarray:
+        """(c, 3) the samples of ``faces`` (all of ``level``)."""
+        w = _subtriangle_centroids(level)
+        pts = np.einsum("sk,fkc->fsc", w, self.reference.vertices[self.reference.faces[faces]])
+        return pts.reshape(-1, 3)
+
     def chunks(self, size: int = CHUNK):
         """(slice of the samples, points (c, 3), normals (c, 3), weights (c,)) in order, about
         ``size`` samples each (whole faces of one level)."""
-        corners_all, normals_all = self.reference.vertices, self.reference.face_normals
-        faces_all = self.reference.faces
-        pos = 0
-        for lv, faces in self._groups():
-            w = _subtriangle_centroids(lv)
-            step = max(1, size // len(w))
-            for lo in range(0, len(faces), step):
-                f = faces[lo:lo + step]
-                pts = np.einsum("sk,fkc->fsc", w, corners_all[faces_all[f]]).reshape(-1, 3)
-                part = slice(pos, pos + len(pts))
-                pos += len(pts)
-                yield part, pts, np.repeat(normals_all[f], len(w), axis=0), self.weights[part]
+        for part, lv, f in self.parts(size):
+            normals = np.repeat(self._normals[f], 4 ** lv, axis=0)
+            yield part, self.points(lv, f), normals, self._weights(lv, f)
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(points (s, 3), normals (s, 3), weights (s,)) all at once."""
         parts = list(self.chunks())
         return (np.concatenate([p for _, p, _, _ in parts]),
-                np.concatenate([n for _, _, n, _ in parts]), self.weights)
+                np.concatenate([n for _, _, n, _ in parts]),
+                np.concatenate([w for _, _, _, w in parts]))
 
 
 def reference_samples(reference: TriMesh, sample_area: float | None = None) -> Samples:

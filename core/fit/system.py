@@ -21,7 +21,7 @@ from ..micromesh import MicroMesh
 from .joint_sums import joint_system
 from .rows import row_system
 from .samples import CHUNK, Samples
-from .triangle_sums import blocks_csr, f64, triangle_sums
+from .triangle_sums import BlockOperator, blocks_csr, f64, triangle_sums
 
 
 def normal_equations(mm: MicroMesh, d: np.ndarray, samples: Samples, smoothness: float,
@@ -94,8 +94,11 @@ def regularisation(T: np.ndarray, D: np.ndarray, smoothness: float, size: int
     over the first n = len(D) unknowns of a ``size``-unknown system (padded in CSR: a
     block_diag goes through triplets, as large as the system at a million unknowns)."""
     n = len(D)
-    LS = (uniform_laplacian(n, T) @ sp.diags(np.linalg.norm(D, axis=1))).tocsr()
-    R = (smoothness * (LS.T.tocsr() @ LS) + 1e-9 * sp.eye(n, format="csr")).tocsr()
+    if smoothness > 0:
+        LS = (uniform_laplacian(n, T) @ sp.diags(np.linalg.norm(D, axis=1))).tocsr()
+        R = (smoothness * (LS.T.tocsr() @ LS) + 1e-9 * sp.eye(n, format="csr")).tocsr()
+    else:         # (LᵀL at a million unknowns is the round's largest matrix: not made for 0)
+        R = 1e-9 * sp.eye(n, format="csr")
     return sp.csr_matrix((R.data, R.indices, np.concatenate(
         [R.indptr, np.full(size - n, R.indptr[-1])])), shape=(size, size))
 
@@ -154,11 +157,38 @@ def _displacement_system(matches, T, P, D, slopes):
     """(M, b) over the displacements alone: each micro-triangle's 3 x 3 block, summed over its
     samples by :func:`triangle_sums`, scattered into M (``rows.row_system`` without ``W`` gives
     the same system from the rows)."""
-    n, m = len(P), len(T)
-    G = np.zeros((m, 3, 3))
-    b = np.zeros(n)
+    G, b = _blocks(matches, T, P, D, slopes)
+    return blocks_csr(G, T, len(P)), b
+
+
+def _blocks(matches, T, P, D, slopes, dtype=np.float64) -> tuple[np.ndarray, np.ndarray]:
+    """(G (m, 3, 3) of ``dtype``: each micro-triangle's block, its upper triangle summed over
+    its samples by :func:`triangle_sums`; b (n,))."""
+    G = np.zeros((len(T), 3, 3), dtype)
+    b = np.zeros(len(P))
     P, D = f64(P), f64(D)
     for pts, normals, weights, tri, corners, B in matches:
         triangle_sums(tri, corners, B, f64(pts), f64(normals), f64(weights), P, D,
                       float(slopes), G, b)
-    return blocks_csr(G, T, n), b
+    return G, b
+
+
+def displacement_blocks(matches, T: np.ndarray, P: np.ndarray, D: np.ndarray, d: np.ndarray,
+                        slopes: float) -> tuple[BlockOperator, np.ndarray]:
+    """The displacement round of :func:`normal_equations` without its smoothness (M, b), M
+    left as its micro-triangles' blocks (:class:`BlockOperator`: M v without a matrix, a
+    tenth of a CSR's memory while it is made), for a solver over other unknowns that M is a
+    part of (a height map's texels, ``core.maps.height_fit``): ``matches`` as
+    :func:`sample_matches` (or ``grouped.grouped_matches``) yields them on the triangles
+    ``T`` (m, 3) over micro-vertices ``P + D d``. The micro-vertices no sample holds are kept
+    where they are, as there. The blocks are float32 (half the memory; each sums a few
+    samples, to a relative 1e-7, where the solver stops at 1e-4)."""
+    G, b = _blocks(matches, T, P, D, slopes, np.float32)
+    M = BlockOperator(G, T, np.full(len(d), 1e-9))
+    unheld, firm = unheld_vertices(M.diagonal(), D)
+    M.hold[unheld] += _KEEP * firm
+    b[unheld] += _KEEP * firm * d[unheld]
+    b += 1e-9 * d
+    return M, b
+
+

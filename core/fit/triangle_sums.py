@@ -73,3 +73,30 @@ def blocks_csr(G: np.ndarray, T: np.ndarray, size: int) -> sp.csr_matrix:
     """:func:`csr_sum` of :func:`block_entries` (the corners narrowed to the index type
     first, so that the triplets are made in it)."""
     return csr_sum(*block_entries(G, T.astype(_index(size), copy=False)), size)
+
+
+class BlockOperator:
+    """M = Σ over micro-triangles of each one's symmetric 3 x 3 block ``G`` (m, 3, 3), upper
+    triangle given (:func:`triangle_sums`), at its corners ``T`` (m, 3), plus diag(``hold``)
+    (n,): applied as blocks, never made a matrix. ``G`` is made symmetric in place."""
+
+    def __init__(self, G: np.ndarray, T: np.ndarray, hold: np.ndarray):
+        for i, j in ((0, 1), (0, 2), (1, 2)):
+            G[:, j, i] = G[:, i, j]
+        self.G, self.T, self.hold = G, T, hold
+        self.shape = (len(hold), len(hold))
+
+    def diagonal(self) -> np.ndarray:
+        n = len(self.hold)
+        return self.hold + sum(np.bincount(self.T[:, k], self.G[:, k, k], minlength=n)
+                               for k in range(3))
+
+    def __matmul__(self, v: np.ndarray, chunk: int = 1 << 18) -> np.ndarray:
+        """M v for v (n,) (``chunk`` triangles at a time: their temporaries 120 bytes each)."""
+        out = self.hold * v
+        for s in range(0, len(self.T), chunk):
+            T = self.T[s:s + chunk]
+            G = self.G[s:s + chunk].astype(np.float64, copy=False)   # (einsum mixing is slow)
+            y = np.einsum("mij,mj->mi", G, v[T])
+            out += np.bincount(T.reshape(-1), y.reshape(-1), minlength=len(v))
+        return out

@@ -32,23 +32,44 @@ class Atlas:
         return self.uv[self.faces]
 
 
-def uv_atlas(base: TriMesh, resolution: int, padding: int = 4) -> Atlas:
-    """Charts cut and packed by xatlas for a ``resolution``² texture with ``padding`` texels
-    between charts (room for the bleed that keeps filtering off the seams)."""
+def uv_atlas(base: TriMesh, resolution: int, padding: int = 1) -> Atlas:
+    """Charts cut and packed by xatlas into a ``resolution``² texture, ``padding`` texels
+    between charts besides the texel bilinear filtering reads past a chart's edge, at the
+    largest texel density that fits one texture: xatlas' own estimate leaves the atlas
+    smaller (bunny_69k's base at 2048²: 641 texels wide) or larger (gen_parts86's: 2764) than
+    asked, and the UVs scaled to the square then waste texels or shrink the padding."""
     import xatlas
 
     if base.n_faces == 0:
         raise AtlasError("the base mesh has no faces")
-    atlas = xatlas.Atlas()
-    atlas.add_mesh(base.vertices.astype(np.float32), base.faces.astype(np.uint32))
-    pack = xatlas.PackOptions()
-    pack.resolution, pack.padding, pack.bilinear = int(resolution), int(padding), True
-    atlas.generate(xatlas.ChartOptions(), pack)
+    res = int(resolution)
+
+    def packed(texels_per_unit: float):
+        atlas = xatlas.Atlas()
+        atlas.add_mesh(base.vertices.astype(np.float32), base.faces.astype(np.uint32))
+        pack = xatlas.PackOptions()
+        pack.resolution, pack.padding, pack.bilinear = res, int(padding), True
+        pack.texels_per_unit = float(texels_per_unit)
+        atlas.generate(xatlas.ChartOptions(), pack)
+        return atlas
+
+    atlas = packed(0.0)                   # xatlas' estimate, then scaled to the texture
+    density = atlas.texels_per_unit * res / max(atlas.width, atlas.height)
+    for _ in range(8):
+        atlas = packed(density)
+        over = max(atlas.atlas_count ** 0.5, max(atlas.width, atlas.height) / res)
+        if atlas.atlas_count == 1 and over <= 1.0:
+            break
+        density *= 0.98 / max(over, 1.0)
+    else:
+        raise AtlasError(f"no room for the base's UVs: the charts of its {base.n_faces} faces "
+                         f"do not fit one {res}² texture; use a larger resolution or a coarser "
+                         "base")
     vmap, faces, uv = atlas[0]
     if faces.shape != base.faces.shape:
         raise AtlasError(f"xatlas returned {len(faces)} faces for {base.n_faces}")
-    return Atlas(np.asarray(uv, np.float64), np.asarray(faces, np.int64),
-                 np.asarray(vmap, np.int64))
+    uv = np.asarray(uv, np.float64) * np.array([atlas.width, atlas.height]) / res
+    return Atlas(uv, np.asarray(faces, np.int64), np.asarray(vmap, np.int64))
 
 
 # A map's size: a power of two (what mipmaps and every texture API take) within these.
@@ -109,7 +130,7 @@ def atlas_from_uvs(base: TriMesh, corner_uv: np.ndarray, resolution: int) -> Atl
     return atlas
 
 
-def texel_faces(atlas: Atlas, width: int, height: int, chunk: int = 1 << 22
+def texel_faces(atlas: Atlas, width: int, height: int, chunk: int = 1 << 20
                 ) -> tuple[np.ndarray, np.ndarray]:
     """(face (H, W) int64, -1 where no face; bary (H, W, 3) float64): the base face whose UV
     triangle holds each texel centre and the texel's (w, u, v) barycentrics in it."""

@@ -19,6 +19,7 @@ import numpy as np
 from ..bake import bake_displacements, nearest_points
 from ..micromesh import MicroMesh
 from .atlas import Atlas, dilate, texel_faces, uv_atlas
+from .lattice import DrawnSurface
 
 
 @dataclass(eq=False)
@@ -54,7 +55,7 @@ class MapsCancelled(RuntimeError):
 
 
 def bake_maps(mm: MicroMesh, resolution: int = 2048, padding: int = 4,
-              atlas: Atlas | None = None, chunk: int = 1 << 20,
+              atlas: Atlas | None = None, chunk: int = 1 << 18,
               progress: Callable[[dict], None] = lambda p: None,
               should_stop: Callable[[], bool] = lambda: False) -> Maps:
     """Height and normal maps of ``mm`` at ``resolution``² on ``atlas`` (default: a new
@@ -87,16 +88,50 @@ def bake_maps(mm: MicroMesh, resolution: int = 2048, padding: int = 4,
         P, n = base_point(mm, U, f, b)
         hit = bake_displacements(P, n, surface, max_distance=reach)   # along ±n, nearest
         height[y, x] = hit.displacement
-        m = facet[hit.face]
-        tv = tangents[atlas.faces[f]]                              # (q, 3, 4)
-        tl = np.einsum("qk,qkc->qc", b, tv[..., :3])
-        t = orthogonal_tangent(n, tl)
-        bt = np.cross(n, t) * tv[:, 0, 3:4]
-        normal[y, x] = np.stack([(m * t).sum(1), (m * bt).sum(1), (m * n).sum(1)], 1)
+        normal[y, x] = _in_tangent_frame(facet[hit.face], n, tangents[atlas.faces[f]], b)
     height = dilate(height, filled, padding)
     normal = dilate(normal, filled, padding)
     return Maps(atlas, height.astype(np.float32), ((normal + 1.0) * 0.5).astype(np.float32),
                 filled)
+
+
+def drawn_normal_map(mm: MicroMesh, surface: DrawnSurface, atlas: Atlas, resolution: int,
+                     padding: int = 4, chunk: int = 1 << 18,
+                     should_stop: Callable[[], bool] = lambda: False
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """(normal (R, R, 3) float32 encoded, filled (R, R)): the normal map of ``surface``, what
+    a height map on ``mm``'s base and unit directions draws (``core.maps.height_fit``), whose
+    every point lies over its own base point: each texel holds the normal of the
+    micro-triangle over its base point (:meth:`DrawnSurface.locate`, no ray), in the base's
+    tangent frame as :func:`bake_maps` holds it."""
+    face, bary = texel_faces(atlas, resolution, resolution)
+    filled = face >= 0
+    ys, xs = np.nonzero(filled)
+    normal = np.zeros(filled.shape + (3,), np.float32)
+    normal[..., 2] = 1.0
+    U = unit_directions(mm)
+    tangents = vertex_tangents(mm, atlas)
+    for s in range(0, len(ys), chunk):
+        if should_stop():
+            raise MapsCancelled("map baking cancelled")
+        y, x = ys[s:s + chunk], xs[s:s + chunk]
+        f, b = face[y, x], bary[y, x]
+        c = surface.X[surface.locate(f, b)[0]]
+        m = unit(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]))
+        n = base_point(mm, U, f, b)[1]
+        normal[y, x] = _in_tangent_frame(m, n, tangents[atlas.faces[f]], b)
+    del face, bary
+    return ((dilate(normal, filled, padding) + 1.0) * 0.5).astype(np.float32), filled
+
+
+def _in_tangent_frame(m: np.ndarray, n: np.ndarray, tv: np.ndarray, b: np.ndarray
+                      ) -> np.ndarray:
+    """(q, 3) unit normals ``m`` in the tangent frame at base points of unit normal ``n``:
+    the tangents ``tv`` (q, 3, 4) of the points' faces' atlas corners interpolated by ``b``
+    (q, 3), made orthogonal to n; the bitangent n × t, its sign the corners'."""
+    t = orthogonal_tangent(n, np.einsum("qk,qkc->qc", b, tv[..., :3]))
+    bt = np.cross(n, t) * tv[:, 0, 3:4]
+    return np.stack([(m * t).sum(1), (m * bt).sum(1), (m * n).sum(1)], 1)
 
 
 def sample(image: np.ndarray, uv: np.ndarray, nearest: bool = False) -> np.ndarray:

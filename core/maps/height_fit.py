@@ -5,8 +5,8 @@ some level L and moving every lattice point by the bilinearly sampled height alo
 normalised interpolated normal. That is a micro-mesh of uniform level L with the unit vertex
 normals as directions, whose displacement at micro-vertex k is d_k = h_k / |lerp(N)_k|; and
 h = B x, B the bilinear lookups of the texels x at the lattice points' UVs. So the fit's
-normal equations over d (``core.fit.system``: the reference's samples matched to the
-micro-surface, point-to-plane and slope rows, smoothness) become, with d = S B x and
+normal equations over d (``core.fit.system.displacement_blocks``: the reference's samples
+matched to the micro-surface, point-to-plane and slope rows) become, with d = S B x and
 S = diag(1 / |lerp(N)|), a system over the texels:
 
     (Bᵀ S M S B + λ GᵀG + μ CᵀC) x = Bᵀ S b
@@ -30,15 +30,18 @@ import scipy.sparse.linalg as spla
 from scipy import ndimage
 
 from ..bake import bake_displacements
-from ..fit.samples import fit_samples
-from ..fit.system import normal_equations
+from ..closest import ClosestPointIndex
+from ..fit.grouped import GroupedMatches, spatial_order
+from ..fit.samples import Samples, reference_samples
+from ..fit.system import displacement_blocks
 from ..mesh import TriMesh
 from ..micromesh import MicroMesh
 from ..normalization import unit_sphere_normalization
 from .atlas import Atlas, check_room, checked_resolution, texel_faces
-from .bake import MapsCancelled, base_point, unit_directions
+from .bake import MapsCancelled, unit, unit_directions
+from .lattice import DrawnSurface, Lattice
 from .seams import seam_gap_max, seam_points
-from .texels import TexelGrid, bilinear_taps
+from .texels import Membrane, TexelGrid, bilinear_taps
 
 # The membrane's and the seams' weights, as fractions of the median micro-vertex's hold by
 # its samples (the diagonal of the fit's system).
@@ -48,6 +51,14 @@ SEAM = 1.0
 # 2048²: 1e-4 and 1e-6 gave the same image, 41.90 dB, in a fifth of the iterations).
 RTOL = 1e-4
 MAX_CG = 400
+# Texels rasterised, baked and sampled at a time: each takes some hundred bytes of
+# temporaries (a whole 2048² map at once added 1.2 GB to the stage's peak).
+CHUNK = 1 << 18
+# Reference samples per lattice triangle, at least (``core.fit.samples``: a face's samples
+# are rounded up to a power of 4, so a uniform scan gets one to four times this). bunny_69k
+# at 2048²: 41.92 dB at 2, 41.84 at 1 (3.1M samples, not 4.6M); the 871k scan: 33M samples
+# at 2, 183 s and 4.1 GB for the stage.
+DENSITY = 1.0
 
 
 @dataclass(eq=False)
@@ -57,20 +68,19 @@ class HeightMap:
     ``height`` (H, W) float32: world units along the normalised interpolated vertex normal,
     row 0 at v = 0; ``filled`` (H, W) bool: texels inside a chart; ``level``: the
     tessellation it was fitted for; ``surface``: that tessellation as a micro-mesh (uniform
-    ``level``, the unit normals as directions, world space): what a renderer draws.
+    ``level`` over the base, world space: ``lattice.DrawnSurface``): what a renderer draws.
     """
 
     atlas: Atlas
     height: np.ndarray
     filled: np.ndarray
     level: int
-    surface: MicroMesh
+    surface: DrawnSurface
     notes: dict = field(default_factory=dict)
 
 
 def fit_height_map(mm: MicroMesh, reference: TriMesh, atlas: Atlas, resolution: int,
-                   level: int = 4, rounds: int = 3, smoothness: float = 1e-3,
-                   slopes: float = 0.1, seam_level: int = 5,
+                   level: int = 4, rounds: int = 2, slopes: float = 0.1, seam_level: int = 5,
                    progress: Callable[[dict], None] = lambda p: None,
                    should_stop: Callable[[], bool] = lambda: False) -> HeightMap:
     """The height map on ``atlas`` at ``resolution``² that draws ``reference`` best over
@@ -82,8 +92,12 @@ def fit_height_map(mm: MicroMesh, reference: TriMesh, atlas: Atlas, resolution: 
         atlas: the base's UVs (``core.maps.uv_atlas`` or ``atlas_from_uvs``).
         resolution: the map's width and height in texels.
         level: the lattice level the fit samples (a renderer's tessellation).
-        rounds: the fit's match-and-solve rounds.
-        smoothness, slopes: the fit's weights (``core.fit``).
+        rounds: the fit's match-and-solve rounds (bunny_69k at 2048²: 41.92 dB after 2 and
+            after 3; the third took 4 CG steps).
+        slopes: the fit's weight of the micro-triangles' tilt (``core.fit``). The membrane
+            over the texels smooths them: the fit's smoothness of the micro-vertices is left
+            out (bunny_69k at 2048²: 41.90 dB with it at 1e-3 and without; its LᵀL was the
+            round's largest matrix).
         seam_level: the seams are closed at the lattice points of this level and coarser.
     Returns:
         :class:`HeightMap`; ``notes``: rounds, CG iterations, seconds, the seam gaps.
@@ -95,69 +109,143 @@ def fit_height_map(mm: MicroMesh, reference: TriMesh, atlas: Atlas, resolution: 
     began = time.perf_counter()
     res = checked_resolution(resolution)
     texels_per_face = check_room(atlas, res)
-    total = rounds + 2
-    progress({"phase": "height map", "iteration": 0, "total": total})
+    progress({"phase": "height map", "iteration": 0, "total": rounds + 2})
     frame = unit_sphere_normalization(reference.vertices)
     base = mm.base.with_vertices(frame.apply(mm.base.vertices))
-    ref = reference.with_vertices(frame.apply(reference.vertices))
+    v = frame.apply(reference.vertices)           # its faces in a spatial order (core.fit.grouped)
+    ref = TriMesh(v, reference.faces[spatial_order(v[reference.faces].mean(1))])
     U = unit_directions(mm)
-    lattice = MicroMesh.flat(base, np.full(base.n_faces, int(level)), directions=U)
-    topo = lattice.topology
-    uv = np.einsum("qk,qkc->qc", topo.vertex_bary, atlas.corner_uv[topo.vertex_face])
-    lt, lw = bilinear_taps(uv, res, res)
-    seams = seam_points(base, atlas, seam_level)
-    apart = np.any(seams.uv_a != seams.uv_b, axis=1)
-    at, aw = bilinear_taps(seams.uv_a[apart], res, res)
-    bt, bw = bilinear_taps(seams.uv_b[apart], res, res)
-    face, bary = texel_faces(atlas, res, res)
-    filled = face >= 0
-    grid = TexelGrid.covering(res, res, ndimage.binary_dilation(filled, iterations=2), lt, at, bt)
-
-    start = _bake(base, U, ref, face, bary, filled, lattice)
-    x = start.reshape(-1)[grid.texels].copy()
-    length = np.linalg.norm(lattice.micro_vertex_directions(), axis=1)
-    SB = (sp.diags(1.0 / length) @ grid.sampling(lt, lw)).tocsr()
-    SBT = SB.T.tocsr()
-    C = (grid.sampling(at, aw) - grid.sampling(bt, bw)).tocsr()
-    CtC = (C.T @ C).tocsr()
-    membrane = grid.membrane()
-    samples = fit_samples(lattice, ref)
+    lattice, uv = Lattice.over(base, U, atlas, level)
+    texels = _Texels.set_up(lattice, uv, base, U, ref, atlas, res, seam_level)
+    del uv
+    d = texels.SB @ texels.x
+    samples, bound = _samples(lattice, base, ref, d)
+    groups = lattice.groups(base)
+    length = np.linalg.norm(lattice.D, axis=1)
     iterations = []
     for r in range(rounds):
         if should_stop():
             raise MapsCancelled("height map cancelled")
-        progress({"phase": "height map", "iteration": r + 1, "total": total})
-        M, b = normal_equations(lattice, SB @ x, samples, smoothness, slopes)
-        hold = float(np.median(M.diagonal()))
-        Q = (MEMBRANE * hold * membrane + SEAM * hold * CtC).tocsr()
-        diag = SBT.multiply(SBT) @ M.diagonal() + Q.diagonal()
-        x, its = _pcg(lambda v: SBT @ (M @ (SB @ v)) + Q @ v, SBT @ b, x, diag, should_stop)
-        iterations.append(its)
-    progress({"phase": "height map", "iteration": rounds + 1, "total": total})
-    x = _closed(C, x)
-    height = _padded(grid.image(x, start), grid) / frame.scale
-    world = lattice.with_displacements(SB @ x / frame.scale).with_base_positions(
-        mm.base.vertices)
+        progress({"phase": "height map", "iteration": r + 1, "total": rounds + 2})
+        steps, dist = texels.solve(lattice, groups, samples, bound, slopes, should_stop)
+        iterations.append(steps)
+        moved = texels.SB @ texels.x          # the next bound: as near, but for the move
+        bound = dist * np.float32(1 + 1e-6) + np.float32(np.abs((moved - d) * length).max())
+        d = moved
+    progress({"phase": "height map", "iteration": rounds + 1, "total": rounds + 2})
+    x = _closed(texels.C, texels.x)
+    height = _padded(texels.grid.image(x, texels.start), texels.grid) / frame.scale
     gaps = seam_gap_max(mm.base, atlas, height)
     notes = {"level": int(level), "resolution": res, "rounds": int(rounds),
-             "cg_iterations": iterations, "texels_solved": int(grid.n),
-             "lattice_points": int(topo.n_vertices), "texels_per_face": texels_per_face,
-             "seam_edges": int(len(np.unique(seams.edge))),
+             "cg_iterations": iterations, "texels_solved": int(texels.grid.n),
+             "lattice_points": int(lattice.n_vertices), "texels_per_face": texels_per_face,
+             "seam_edges": texels.seam_edges,
              "seam_gap_max": {str(k): v / mm.base.bbox_diagonal for k, v in gaps.items()},
              "time_s": time.perf_counter() - began}
-    return HeightMap(atlas, height.astype(np.float32), filled, int(level), world, notes)
+    d = texels.SB @ x
+    surface = lattice.drawn(frame.invert(lattice.P + lattice.D * d[:, None]), d / frame.scale)
+    return HeightMap(atlas, height.astype(np.float32), texels.filled, int(level), surface,
+                     notes)
+
+
+@dataclass(eq=False)
+class _Texels:
+    """The unknown texels and what ties them: ``grid`` (which texels), ``SB`` (n, q) the
+    lattice's displacements from them, ``C`` the seams' rows, ``membrane``; ``start`` the
+    conventional bake (H, W) and ``x`` (q,) the current values; ``filled`` the charts."""
+
+    grid: TexelGrid
+    SB: sp.csr_matrix
+    C: sp.csr_matrix
+    CtC: sp.csr_matrix
+    membrane: Membrane
+    start: np.ndarray
+    x: np.ndarray
+    filled: np.ndarray
+    seam_edges: int
+
+    @classmethod
+    def set_up(cls, lattice: Lattice, uv: np.ndarray, base: TriMesh, U: np.ndarray,
+               ref: TriMesh, atlas: Atlas, res: int, seam_level: int) -> "_Texels":
+        lt, lw = bilinear_taps(uv, res, res)
+        seams = seam_points(base, atlas, seam_level)
+        apart = np.any(seams.uv_a != seams.uv_b, axis=1)
+        at, aw = bilinear_taps(seams.uv_a[apart], res, res)
+        bt, bw = bilinear_taps(seams.uv_b[apart], res, res)
+        face, bary = texel_faces(atlas, res, res, chunk=CHUNK)
+        filled = face >= 0
+        grid = TexelGrid.covering(res, res, ndimage.binary_dilation(filled, iterations=2),
+                                  lt, at, bt)
+        start = _bake(base, U, ref, face, bary, filled)
+        del face, bary
+        length = np.linalg.norm(lattice.D, axis=1)
+        SB = (sp.diags(1.0 / length) @ grid.sampling(lt, lw)).tocsr()
+        C = (grid.sampling(at, aw) - grid.sampling(bt, bw)).tocsr()
+        return cls(grid, SB, C, (C.T @ C).tocsr(), grid.membrane(), start,
+                   start.reshape(-1)[grid.texels].copy(), filled,
+                   int(len(np.unique(seams.edge[seams.edge >= 0]))))
+
+    def solve(self, lattice: Lattice, groups: list, samples: Samples, bound: np.ndarray,
+              slopes: float, should_stop: Callable[[], bool]) -> tuple[int, np.ndarray]:
+        """One round: the samples matched to the lattice the texels draw now (``bound``:
+        a distance within which each has a triangle), the system over the texels solved
+        from them; (the CG steps it took, each sample's distance to the lattice before)."""
+        d = self.SB @ self.x
+        X = lattice.P + lattice.D * d[:, None]
+        T = lattice.triangles
+        matches = GroupedMatches(X, T, groups, samples, bound)
+        M, b = displacement_blocks(matches, T, lattice.P, lattice.D, d, slopes)
+        dist = matches.distance
+        del X, matches
+        hold = float(np.median(M.diagonal()))
+        tied, seam = MEMBRANE * hold, SEAM * hold
+        SB, membrane, CtC = self.SB, self.membrane, self.CtC
+        squares = sp.csr_matrix((SB.data ** 2, SB.indices, SB.indptr), shape=SB.shape)
+        diag = squares.T @ M.diagonal() + tied * membrane.diagonal() \
+            + seam * CtC.diagonal()
+        del squares
+        self.x, steps = _pcg(lambda v: SB.T @ (M @ (SB @ v)) + tied * (membrane @ v)
+                             + seam * (CtC @ v), SB.T @ b, self.x, diag, should_stop)
+        return steps, dist
+
+
+def _samples(lattice: Lattice, base: TriMesh, ref: TriMesh, d: np.ndarray
+             ) -> tuple[Samples, np.ndarray]:
+    """The reference's samples, at least two per micro-triangle of the lattice displaced by
+    ``d`` (``core.fit.samples``), and a distance within which the lattice has a point for
+    each: its distance to the base plus the largest height (float32)."""
+    X = lattice.P + lattice.D * d[:, None]
+    area = 0.0
+    for s in range(0, len(lattice.triangles), CHUNK):
+        c = X[lattice.triangles[s:s + CHUNK]]
+        area += 0.5 * np.linalg.norm(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]),
+                                     axis=1).sum()
+    samples = reference_samples(ref, area / (DENSITY * len(lattice.triangles)))
+    top = float(np.linalg.norm(X - lattice.P, axis=1).max())
+    del X
+    index = ClosestPointIndex(base.vertices, base.faces)
+    bound = np.empty(len(samples), np.float32)
+    for part, pts, _, _ in samples.chunks():
+        bound[part] = (index.query(pts)[2] + top) * (1 + 1e-6)
+    return samples, bound
 
 
 def _bake(base: TriMesh, U: np.ndarray, ref: TriMesh, face: np.ndarray, bary: np.ndarray,
-          filled: np.ndarray, lattice: MicroMesh) -> np.ndarray:
+          filled: np.ndarray) -> np.ndarray:
     """(H, W) the conventional bake in the unit frame: from each filled texel's base point a
     ray both ways along the interpolated unit normal, the nearer hit (the nearest point of
     the reference where none is within reach); every other texel the nearest filled one's."""
     ys, xs = np.nonzero(filled)
-    P, n = base_point(lattice, U, face[ys, xs], bary[ys, xs])
     reach = 0.05 * ref.bbox_diagonal
+    ref = TriMesh(ref.vertices, ref.faces)  # its ray scene and tree (cached on it) freed after
     h = np.zeros(filled.shape)
-    h[ys, xs] = bake_displacements(P, n, ref, max_distance=reach).displacement
+    for s in range(0, len(ys), CHUNK):
+        y, x = ys[s:s + CHUNK], xs[s:s + CHUNK]
+        f, b = face[y, x], bary[y, x]
+        tri = base.faces[f]
+        P = np.einsum("qk,qkc->qc", b, base.vertices[tri])
+        n = unit(np.einsum("qk,qkc->qc", b, U[tri]))
+        h[y, x] = bake_displacements(P, n, ref, max_distance=reach).displacement
     return _nearest_fill(h, filled)
 
 

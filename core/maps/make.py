@@ -1,6 +1,6 @@
 """The maps of a result, as every caller makes them (Bake Maps, ``batch.py --maps``, the
 benchmark): the atlas, the height map fitted to the source (``height_fit``) and the normal
-map of the surface that height map draws (``bake``)."""
+map of the surface that height map draws (``bake.drawn_normal_map``)."""
 from __future__ import annotations
 
 from typing import Callable
@@ -9,7 +9,7 @@ from ..construct.reference import oriented_reference
 from ..mesh import TriMesh
 from ..micromesh import MicroMesh
 from .atlas import Atlas, uv_atlas
-from .bake import Maps, bake_maps
+from .bake import Maps, drawn_normal_map
 from .height_fit import fit_height_map
 
 # The tessellation level a height map is fitted for: what a renderer cuts each base triangle
@@ -41,6 +41,6 @@ def make_maps(mm: MicroMesh, reference: TriMesh | None, resolution: int,
         reference = oriented_reference(reference)[0]
     hm = fit_height_map(mm, reference, atlas, resolution, level, progress=progress,
                         should_stop=should_stop)
-    drawn = bake_maps(hm.surface, resolution, atlas=atlas, progress=progress,
-                      should_stop=should_stop)
-    return Maps(atlas, hm.height, drawn.normal, drawn.filled, hm.notes)
+    normal, filled = drawn_normal_map(mm, hm.surface, atlas, resolution,
+                                      should_stop=should_stop)
+    return Maps(atlas, hm.height, normal, filled, hm.notes)

@@ -24,8 +24,9 @@ class SeamPoints:
     """The lattice points of one level on every seam edge, seen from both sides.
 
     ``uv_a``, ``uv_b`` (q, 2): the same surface point's UVs in the edge's first face and in
-    another face of the edge; ``edge`` (q,): the base edge; ``t`` (q,): the point's place
-    along it, k / 2^level from its lower-numbered vertex.
+    another face of the edge (or a base vertex's first place in the atlas and another);
+    ``edge`` (q,): the base edge (-1: a vertex); ``t`` (q,): the point's place along it,
+    k / 2^level from its lower-numbered vertex.
     """
 
     uv_a: np.ndarray
@@ -70,7 +71,9 @@ def seam_half_edges(base: TriMesh, atlas: Atlas) -> tuple[np.ndarray, np.ndarray
 
 def seam_points(base: TriMesh, atlas: Atlas, level: int) -> SeamPoints:
     """The lattice points of ``level`` on every seam edge (both ends included), from both
-    sides (:class:`SeamPoints`)."""
+    sides, and every base vertex that has several places in the atlas from each of them
+    against its first (a vertex where fans of faces meet without an edge between them has
+    no seam edge to tie them) (:class:`SeamPoints`; a vertex's ``edge`` is -1)."""
     edge, a, b = seam_half_edges(base, atlas)
     t = np.arange((1 << level) + 1) / float(1 << level)
     uv = atlas.uv
@@ -79,7 +82,15 @@ def seam_points(base: TriMesh, atlas: Atlas, level: int) -> SeamPoints:
         p0, p1 = uv[ends[:, 0]][:, None, :], uv[ends[:, 1]][:, None, :]
         return (p0 * (1.0 - t)[None, :, None] + p1 * t[None, :, None]).reshape(-1, 2)
 
-    return SeamPoints(along(a), along(b), np.repeat(edge, len(t)), np.tile(t, len(edge)))
+    order = np.argsort(atlas.vertex, kind="stable")
+    v = atlas.vertex[order]
+    first = np.r_[True, v[1:] != v[:-1]] if len(v) else np.zeros(0, bool)
+    lead = order[np.flatnonzero(first)[np.cumsum(first) - 1]]
+    copy = order[~first]
+    return SeamPoints(np.concatenate([along(a), uv[lead[~first]]]),
+                      np.concatenate([along(b), uv[copy]]),
+                      np.concatenate([np.repeat(edge, len(t)), np.full(len(copy), -1)]),
+                      np.concatenate([np.tile(t, len(edge)), np.zeros(len(copy))]))
 
 
 def seam_gap_max(base: TriMesh, atlas: Atlas, height: np.ndarray,

@@ -1,0 +1,79 @@
+"""What a renderer draws from a base and a height map at one tessellation level, kept as the
+height map's fit needs it: every base triangle cut into the lattice of that level (4^level
+triangles), each micro-vertex with its base position, its direction (the unit vertex
+normals interpolated, not normalised).
+
+A micro-mesh's topology of millions of micro-vertices holds more than this (160 bytes a
+micro-vertex on gen_scan_871k's lattice, where this keeps 100): the fit keeps these arrays
+and draws its result as a :class:`DrawnSurface`, with no topology.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..fit.grouped import GROUP, spatial_order, triangle_groups
+from ..mesh import TriMesh
+from ..micro_locate import grid_cell
+from ..micromesh import MicroMesh
+from .atlas import Atlas
+
+
+@dataclass(eq=False)
+class Lattice:
+    """``triangles`` (m, 3) int32 micro-vertices; ``P``, ``D`` (n, 3);
+    ``face_triangle_ptr`` (nf + 1,): the triangles of base face f are ptr[f]:ptr[f + 1];
+    ``face_vertices`` (nf, k) int32: each face's micro-vertices in u-major order."""
+
+    level: int
+    triangles: np.ndarray
+    P: np.ndarray
+    D: np.ndarray
+    face_triangle_ptr: np.ndarray
+    face_vertices: np.ndarray
+
+    @classmethod
+    def over(cls, base: TriMesh, directions: np.ndarray, atlas: Atlas, level: int
+             ) -> tuple["Lattice", np.ndarray]:
+        """The lattice of ``level`` on ``base`` with unit vertex ``directions`` (nv, 3), and
+        (n, 2) its micro-vertices' UVs on ``atlas`` (in the face that holds each)."""
+        t = MicroMesh.flat(base, np.full(base.n_faces, int(level)), directions).topology
+        uv = np.einsum("qk,qkc->qc", t.vertex_bary, atlas.corner_uv[t.vertex_face])
+        face_vertices = t.face_vertex_idx.astype(np.int32).reshape(base.n_faces, -1)
+        return cls(int(level), t.triangles.astype(np.int32), t.interp @ base.vertices,
+                   t.interp @ directions, t.face_triangle_ptr.copy(), face_vertices), uv
+
+    @property
+    def n_vertices(self) -> int:
+        return len(self.P)
+
+    def groups(self, base: TriMesh, size: int = GROUP) -> list:
+        """The triangles in groups of about ``size`` over compact regions of ``base`` (its
+        faces in the Morton order of their centroids), for :mod:`core.fit.grouped`."""
+        order = spatial_order(base.vertices[base.faces].mean(1))
+        return triangle_groups(order, self.face_triangle_ptr, size)
+
+    def drawn(self, X: np.ndarray, d: np.ndarray) -> "DrawnSurface":
+        """The lattice's micro-vertices at ``X`` (n, 3), displaced by ``d`` (n,)."""
+        return DrawnSurface(self.level, X, d, self.face_vertices)
+
+
+@dataclass(eq=False)
+class DrawnSurface:
+    """What a renderer draws from a base and a height map: the lattice of ``level`` on every
+    base face, its micro-vertices at ``X`` (n, 3), ``d`` (n,) their displacements along the
+    interpolated vertex normals (not normalised), ``face_vertices`` (nf, k) each face's
+    micro-vertices in u-major order (the indices of ``MicroMesh.flat``'s topology at the
+    same level, as :class:`Lattice`'s)."""
+
+    level: int
+    X: np.ndarray
+    d: np.ndarray
+    face_vertices: np.ndarray
+
+    def locate(self, faces: np.ndarray, bary: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """((q, 3) micro-vertices, (q, 3) weights) of the micro-triangle holding each point
+        of base ``faces`` (q,) and barycentrics ``bary`` (q, 3), as ``MicroMesh.locate``."""
+        loc, w = grid_cell(self.level, bary)
+        return self.face_vertices[np.asarray(faces)[:, None], loc], w
