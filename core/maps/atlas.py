@@ -32,70 +32,27 @@ class Atlas:
         return self.uv[self.faces]
 
 
-def uv_atlas(base: TriMesh, resolution: int, padding: int = 1) -> Atlas:
-    """Charts cut and packed by xatlas into a ``resolution``² texture: of two packings, the
-    one whose charts cover more texels.
-
-    - Square texels at the largest density that fits one texture, ``padding`` texels
-      between charts besides the texel bilinear filtering reads past a chart's edge (from
-      xatlas' own estimate scaled by area, lowered until the charts fit).
-    - xatlas' own estimate with 4 texels of padding, its UVs stretched to the square on each
-      axis: where one long chart (a holed plate's rim) makes the atlas elongated (10812 by
-      455 texels at 2048²), square texels leave most of the texture empty.
-    """
+def uv_atlas(base: TriMesh, resolution: int, padding: int = 4) -> Atlas:
+    """Charts cut and packed by xatlas for a ``resolution``² texture with ``padding`` texels
+    between charts (room for the bleed that keeps filtering off the seams). xatlas sizes its
+    atlas by its own texel density and its UVs span the square on each axis: an atlas wider
+    than the texture has its padding shrunk by as much on that axis, one narrower grown
+    (other packings tried: ``docs/heightmaps.md``)."""
     import xatlas
 
     if base.n_faces == 0:
         raise AtlasError("the base mesh has no faces")
-    res = int(resolution)
-
-    def packed(texels_per_unit: float, pad: int):
-        atlas = xatlas.Atlas()
-        atlas.add_mesh(base.vertices.astype(np.float32), base.faces.astype(np.uint32))
-        pack = xatlas.PackOptions()
-        pack.resolution, pack.padding, pack.bilinear = res, int(pad), True
-        pack.texels_per_unit = float(texels_per_unit)
-        atlas.generate(xatlas.ChartOptions(), pack)
-        return atlas
-
-    plain = packed(0.0, max(int(padding), 4))
-    density = plain.texels_per_unit * res / (plain.width * plain.height) ** 0.5
-    candidates = [_atlas_of(base, plain, 1.0, 1.0)] if plain.atlas_count == 1 else []
-    fits, lo, hi = None, None, None             # the densest fit: bisected, to 3 %
-    for _ in range(10):
-        atlas = packed(density, padding)
-        over = max(atlas.atlas_count ** 0.5, max(atlas.width, atlas.height) / res)
-        if atlas.atlas_count == 1 and over <= 1.0:
-            fits, lo = atlas, density
-        else:
-            hi = density
-        if lo is not None and hi is not None and hi < 1.03 * lo:
-            break
-        density = (lo * hi) ** 0.5 if lo and hi else \
-            density * 1.1 if hi is None else density * 0.97 / min(max(over, 1.0), 1.5)
-    if fits is not None:
-        candidates.append(_atlas_of(base, fits, fits.width / res, fits.height / res))
-    if not candidates:
-        raise AtlasError(f"no room for the base's UVs: the charts of its {base.n_faces} faces "
-                         f"do not fit one {res}² texture; use a larger resolution or a coarser "
-                         "base")
-    return max(candidates, key=_uv_area)
-
-
-def _atlas_of(base: TriMesh, atlas, su: float, sv: float) -> Atlas:
-    """xatlas' first atlas (UVs over its own width and height) scaled by (su, sv)."""
+    atlas = xatlas.Atlas()
+    atlas.add_mesh(base.vertices.astype(np.float32), base.faces.astype(np.uint32))
+    pack = xatlas.PackOptions()
+    pack.resolution, pack.padding, pack.bilinear = int(resolution), int(padding), True
+    atlas.generate(xatlas.ChartOptions(), pack)
     vmap, faces, uv = atlas[0]
-    if faces.shape != base.faces.shape:
-        raise AtlasError(f"xatlas returned {len(faces)} faces for {base.n_faces}")
-    return Atlas(np.asarray(uv, np.float64) * np.array([su, sv]), np.asarray(faces, np.int64),
+    if atlas.atlas_count != 1 or faces.shape != base.faces.shape:
+        raise AtlasError(f"no room for the base's UVs: xatlas packed its {base.n_faces} faces "
+                         f"into {atlas.atlas_count} textures")
+    return Atlas(np.asarray(uv, np.float64), np.asarray(faces, np.int64),
                  np.asarray(vmap, np.int64))
-
-
-def _uv_area(atlas: Atlas) -> float:
-    """Twice the charts' area in the unit square."""
-    c = atlas.corner_uv
-    e1, e2 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
-    return float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
 
 
 # A map's size: a power of two (what mipmaps and every texture API take) within these.
