@@ -9,7 +9,8 @@ tessellation) it does the same per input: the same workflow as the add-on's pane
 (``operators.pipeline``). Per input NAME it writes ``NAME.blend`` (holding ``NAME_micromesh``
 and ``NAME_base``), the micro-mesh for other tools (``NAME.gltf`` + ``.bin`` + ``.bary``; or
 ``--export glb``), with ``--maps RES`` height and normal maps (``NAME_maps`` in the .blend,
-``NAME_height.exr``, ``NAME_normal.png``, ``NAME_base.gltf``), the run report
+``NAME_height.png`` (16-bit), ``NAME_height.exr``, ``NAME_normal.png``, ``NAME_base.gltf``
+(``KHR_materials_displacement``), ``NAME.usda``), the run report
 (``NAME.report.png``, ``NAME.report.json``), ``NAME.metrics.json`` and with ``--ply``
 ``NAME_micromesh.ply``: NAME is the input's stem (``stem_ext`` where two inputs share one),
 the files appear together when the input is done (the metrics file last), and existing
@@ -127,12 +128,11 @@ def run_all(args, settings, jobs: list, sets: list, rows: list) -> None:
         except (BatchError, ValueError) as e:
             rows.append(Row(label, "failed"))
             print(f"batch.py: error: {label}: {e}", file=sys.stderr, flush=True)
-        except OSError as e:           # a full disk, a folder gone: nothing of it is left
+        except OSError as e:      # a full disk, a file or folder gone: nothing of it is left
             rows.append(Row(label, "failed"))
             where = f" ({e.filename})" if e.filename else ""
-            print(f"batch.py: error: {label}: cannot write its files{where}: "
-                  f"{e.strerror or e}; nothing of this input was kept", file=sys.stderr,
-                  flush=True)
+            print(f"batch.py: error: {label}: {e.strerror or e}{where}; nothing of this "
+                  "input was kept", file=sys.stderr, flush=True)
         except Exception:
             rows.append(Row(label, "crashed"))
             print(f"batch.py: internal error on {label}:", file=sys.stderr, flush=True)

@@ -70,10 +70,9 @@ class MICROMESH_OT_bake_maps(bpy.types.Operator):
     def execute(self, context):
         if self._refused():
             return {"CANCELLED"}
-        work = self._work(context)
-        try:
-            baked = work(lambda p: None, lambda: False)
-        except AtlasError as e:
+        try:                      # bad input (core's errors are ValueErrors): said, not raised
+            baked = self._work(context)(lambda p: None, lambda: False)
+        except ValueError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
         return self._finish(context, baked)

@@ -75,7 +75,7 @@ class GroupedMatches:
             for part, pts, normals, weights in self.samples.chunks(self.chunk):
                 cp, f, d = index.query(pts, max_distance=self._reach(part))
                 ok = np.flatnonzero(f >= 0)
-                self.distance[part] = d
+                self.distance[part] = np.minimum(d, self._reach(part))    # (inf: none)
                 t = self.groups[0][f[ok]].astype(np.int64)
                 corners = np.ascontiguousarray(T[t], dtype=np.int64)
                 yield (pts[ok], normals[ok], weights[ok], t, corners,

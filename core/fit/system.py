@@ -179,7 +179,7 @@ def displacement_blocks(matches, T: np.ndarray, P: np.ndarray, D: np.ndarray, d:
     left as its micro-triangles' blocks (:class:`BlockOperator`: M v without a matrix, a
     tenth of a CSR's memory while it is made), for a solver over other unknowns that M is a
     part of (a height map's texels, ``core.maps.height_fit``): ``matches`` as
-    :func:`sample_matches` (or ``grouped.grouped_matches``) yields them on the triangles
+    :func:`sample_matches` (or ``grouped.GroupedMatches``) yields them on the triangles
     ``T`` (m, 3) over micro-vertices ``P + D d``. The micro-vertices no sample holds are kept
     where they are, as there. The blocks are float32 (half the memory; each sums a few
     samples, to a relative 1e-7, where the solver stops at 1e-4)."""

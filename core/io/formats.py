@@ -139,8 +139,9 @@ def _usd(product: Product, name: str) -> tuple[Files, dict]:
 
 
 def _height_png(product: Product, name: str) -> tuple[Files, dict]:
+    height = _maps(product).height
     code = product.height_code
-    return {"_height.png": png(code.values(_maps(product).height))}, \
+    return {"_height.png": png(code.values(height))}, \
         {"height_offset": code.offset, "height_factor": code.factor}
 
 

@@ -26,7 +26,6 @@ from typing import Callable
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from scipy import ndimage
 
 from ..bake import bake_displacements
@@ -41,46 +40,39 @@ from .atlas import Atlas, check_room, checked_resolution, texel_faces
 from .bake import MapsCancelled, unit, unit_directions
 from .lattice import DrawnSurface, Lattice
 from .seams import seam_gap_max, seam_points
+from .texel_solve import closed, pcg
 from .texels import Membrane, TexelGrid, bilinear_taps
 
 # The membrane's and the seams' weights, as fractions of the median micro-vertex's hold by
 # its samples (the diagonal of the fit's system).
 MEMBRANE = 1e-3
 SEAM = 1.0
-# Conjugate gradients stop at this residual, relative to the right-hand side's (bunny_69k at
-# 2048²: 1e-4 and 1e-6 gave the same image, 41.90 dB, in a fifth of the iterations).
-RTOL = 1e-4
-MAX_CG = 400
 # Texels rasterised, baked and sampled at a time: each takes some hundred bytes of
 # temporaries (a whole 2048² map at once added 1.2 GB to the stage's peak).
 CHUNK = 1 << 18
-# Reference samples per lattice triangle, at least (``core.fit.samples``: a face's samples
-# are rounded up to a power of 4, so a uniform scan gets one to four times this). bunny_69k
-# at 2048²: 41.92 dB at 2, 41.84 at 1 (3.1M samples, not 4.6M); the 871k scan: 33M samples
-# at 2, 183 s and 4.1 GB for the stage.
+# The tessellation level a height map is fitted for: what a renderer cuts each base triangle
+# into where it shows the detail (the lattice of 4^4 triangles; judged there).
+LEVEL = 4
+# Reference samples per lattice triangle, at least (``core.fit.samples`` rounds a face's up
+# to a power of 4): 2 gained 0.08 dB on bunny_69k for 1.5 times the samples, and took the
+# 871k scan's stage to 4.1 GB (docs/heightmaps.md).
 DENSITY = 1.0
 
 
 @dataclass(eq=False)
 class HeightMap:
-    """A fitted height map and what it stands on.
+    """A fitted height map: ``height`` (H, W) float32, world units along the normalised
+    interpolated vertex normal, row 0 at v = 0; ``level``: the tessellation it was fitted
+    for; ``surface``: what a renderer draws at that level (world space)."""
 
-    ``height`` (H, W) float32: world units along the normalised interpolated vertex normal,
-    row 0 at v = 0; ``filled`` (H, W) bool: texels inside a chart; ``level``: the
-    tessellation it was fitted for; ``surface``: that tessellation as a micro-mesh (uniform
-    ``level`` over the base, world space: ``lattice.DrawnSurface``): what a renderer draws.
-    """
-
-    atlas: Atlas
     height: np.ndarray
-    filled: np.ndarray
     level: int
     surface: DrawnSurface
     notes: dict = field(default_factory=dict)
 
 
 def fit_height_map(mm: MicroMesh, reference: TriMesh, atlas: Atlas, resolution: int,
-                   level: int = 4, rounds: int = 2, slopes: float = 0.1, seam_level: int = 5,
+                   level: int = LEVEL, rounds: int = 2, slopes: float = 0.1, seam_level: int = 5,
                    progress: Callable[[dict], None] = lambda p: None,
                    should_stop: Callable[[], bool] = lambda: False) -> HeightMap:
     """The height map on ``atlas`` at ``resolution``² that draws ``reference`` best over
@@ -133,8 +125,8 @@ def fit_height_map(mm: MicroMesh, reference: TriMesh, atlas: Atlas, resolution: 
         bound = dist * np.float32(1 + 1e-6) + np.float32(np.abs((moved - d) * length).max())
         d = moved
     progress({"phase": "height map", "iteration": rounds + 1, "total": rounds + 2})
-    x = _closed(texels.C, texels.x)
-    height = _padded(texels.grid.image(x, texels.start), texels.grid) / frame.scale
+    x = closed(texels.C, texels.x)
+    height = _padded(texels.grid.image(x, np.zeros((res, res))), texels.grid) / frame.scale
     gaps = seam_gap_max(mm.base, atlas, height)
     notes = {"level": int(level), "resolution": res, "rounds": int(rounds),
              "cg_iterations": iterations, "texels_solved": int(texels.grid.n),
@@ -144,24 +136,21 @@ def fit_height_map(mm: MicroMesh, reference: TriMesh, atlas: Atlas, resolution: 
              "time_s": time.perf_counter() - began}
     d = texels.SB @ x
     surface = lattice.drawn(frame.invert(lattice.P + lattice.D * d[:, None]), d / frame.scale)
-    return HeightMap(atlas, height.astype(np.float32), texels.filled, int(level), surface,
-                     notes)
+    return HeightMap(height.astype(np.float32), int(level), surface, notes)
 
 
 @dataclass(eq=False)
 class _Texels:
     """The unknown texels and what ties them: ``grid`` (which texels), ``SB`` (n, q) the
-    lattice's displacements from them, ``C`` the seams' rows, ``membrane``; ``start`` the
-    conventional bake (H, W) and ``x`` (q,) the current values; ``filled`` the charts."""
+    lattice's displacements from them, ``C`` the seams' rows, ``membrane``; ``x`` (q,) their
+    current values (first the conventional bake's)."""
 
     grid: TexelGrid
     SB: sp.csr_matrix
     C: sp.csr_matrix
     CtC: sp.csr_matrix
     membrane: Membrane
-    start: np.ndarray
     x: np.ndarray
-    filled: np.ndarray
     seam_edges: int
 
     @classmethod
@@ -181,8 +170,8 @@ class _Texels:
         length = np.linalg.norm(lattice.D, axis=1)
         SB = (sp.diags(1.0 / length) @ grid.sampling(lt, lw)).tocsr()
         C = (grid.sampling(at, aw) - grid.sampling(bt, bw)).tocsr()
-        return cls(grid, SB, C, (C.T @ C).tocsr(), grid.membrane(), start,
-                   start.reshape(-1)[grid.texels].copy(), filled,
+        return cls(grid, SB, C, (C.T @ C).tocsr(), grid.membrane(),
+                   start.reshape(-1)[grid.texels].copy(),
                    int(len(np.unique(seams.edge[seams.edge >= 0]))))
 
     def solve(self, lattice: Lattice, groups: list, samples: Samples, bound: np.ndarray,
@@ -204,15 +193,15 @@ class _Texels:
         diag = squares.T @ M.diagonal() + tied * membrane.diagonal() \
             + seam * CtC.diagonal()
         del squares
-        self.x, steps = _pcg(lambda v: SB.T @ (M @ (SB @ v)) + tied * (membrane @ v)
+        self.x, steps = pcg(lambda v: SB.T @ (M @ (SB @ v)) + tied * (membrane @ v)
                              + seam * (CtC @ v), SB.T @ b, self.x, diag, should_stop)
         return steps, dist
 
 
 def _samples(lattice: Lattice, base: TriMesh, ref: TriMesh, d: np.ndarray
              ) -> tuple[Samples, np.ndarray]:
-    """The reference's samples, at least two per micro-triangle of the lattice displaced by
-    ``d`` (``core.fit.samples``), and a distance within which the lattice has a point for
+    """The reference's samples, at least :data:`DENSITY` per micro-triangle of the lattice
+    displaced by ``d`` (``core.fit.samples``), and a distance within which the lattice has a point for
     each: its distance to the base plus the largest height (float32)."""
     X = lattice.P + lattice.D * d[:, None]
     area = 0.0
@@ -262,43 +251,3 @@ def _padded(image: np.ndarray, grid: TexelGrid) -> np.ndarray:
     known = np.zeros(image.size, bool)
     known[grid.texels] = True
     return _nearest_fill(image, known.reshape(image.shape))
-
-
-def _pcg(A: Callable[[np.ndarray], np.ndarray], b: np.ndarray, x: np.ndarray,
-         diag: np.ndarray, should_stop: Callable[[], bool]) -> tuple[np.ndarray, int]:
-    """Jacobi-preconditioned conjugate gradients from ``x`` to a residual of :data:`RTOL`
-    of ``b``'s (at most :data:`MAX_CG` steps); (x, steps)."""
-    inv = np.where(diag > 0, 1.0 / np.where(diag > 0, diag, 1.0), 0.0)
-    x = x.copy()
-    r = b - A(x)
-    z = inv * r
-    p = z.copy()
-    rz = float(r @ z)
-    stop = RTOL * float(np.linalg.norm(b))
-    for k in range(MAX_CG):
-        if float(np.linalg.norm(r)) <= stop:
-            return x, k
-        if k % 16 == 15 and should_stop():
-            raise MapsCancelled("height map cancelled")
-        Ap = A(p)
-        alpha = rz / float(p @ Ap)
-        x += alpha * p
-        r -= alpha * Ap
-        z = inv * r
-        rz, rz_old = float(r @ z), rz
-        p = z + (rz / rz_old) * p
-    return x, MAX_CG
-
-
-def _closed(C: sp.csr_matrix, x: np.ndarray) -> np.ndarray:
-    """``x`` moved the least (in the sum of squares) to satisfy C x = 0: both sides of every
-    seam equal at its lattice points. (C Cᵀ may be singular where rows repeat, at the corners
-    shared by several seam edges: a tiny ridge keeps it invertible, and three passes take the
-    residual to rounding.)"""
-    if C.shape[0] == 0:
-        return x
-    CCt = (C @ C.T).tocsc() + 1e-12 * sp.identity(C.shape[0], format="csc")
-    lu = spla.splu(CCt)
-    for _ in range(3):
-        x = x - C.T @ lu.solve(C @ x)
-    return x

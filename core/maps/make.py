@@ -10,11 +10,7 @@ from ..mesh import TriMesh
 from ..micromesh import MicroMesh
 from .atlas import Atlas, uv_atlas
 from .bake import Maps, drawn_normal_map
-from .height_fit import fit_height_map
-
-# The tessellation level a height map is fitted for: what a renderer cuts each base triangle
-# into where it shows the detail (the lattice of 4^4 triangles; judged there).
-LEVEL = 4
+from .height_fit import LEVEL, fit_height_map
 
 
 def make_maps(mm: MicroMesh, reference: TriMesh | None, resolution: int,
