@@ -17,6 +17,7 @@ from typing import Callable
 import numpy as np
 
 from ..bake import bake_displacements, nearest_points
+from ..mesh import TriMesh
 from ..micromesh import MicroMesh
 from .atlas import Atlas, dilate, texel_faces, uv_atlas
 from .lattice import DrawnSurface
@@ -40,13 +41,13 @@ def unit_directions(mm: MicroMesh) -> np.ndarray:
     return np.where(n > 0, d / np.maximum(n, 1e-300), mm.base.vertex_normals)
 
 
-def base_point(mm: MicroMesh, U: np.ndarray, faces: np.ndarray, bary: np.ndarray
+def base_point(base: TriMesh, U: np.ndarray, faces: np.ndarray, bary: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray]:
-    """(points (q, 3), unit directions (q, 3)) of the base surface at base ``faces`` (q,) and
-    barycentrics ``bary`` (q, 3): where a map's texel sits and the way its height points
+    """(points (q, 3), unit directions (q, 3)) of the ``base`` surface at its ``faces`` (q,)
+    and barycentrics ``bary`` (q, 3): where a map's texel sits and the way its height points
     (``U``: :func:`unit_directions`)."""
-    tri = mm.base.faces[faces]
-    return (np.einsum("qk,qkc->qc", bary, mm.base.vertices[tri]),
+    tri = base.faces[faces]
+    return (np.einsum("qk,qkc->qc", bary, base.vertices[tri]),
             unit(np.einsum("qk,qkc->qc", bary, U[tri])))
 
 
@@ -85,7 +86,7 @@ def bake_maps(mm: MicroMesh, resolution: int = 2048, padding: int = 4,
         progress({"phase": "maps", "iteration": i, "total": len(steps) + 1})
         y, x = ys[s:s + chunk], xs[s:s + chunk]
         f, b = face[y, x], bary[y, x]
-        P, n = base_point(mm, U, f, b)
+        P, n = base_point(mm.base, U, f, b)
         hit = bake_displacements(P, n, surface, max_distance=reach)   # along ±n, nearest
         height[y, x] = hit.displacement
         normal[y, x] = _in_tangent_frame(facet[hit.face], n, tangents[atlas.faces[f]], b)
@@ -118,7 +119,7 @@ def drawn_normal_map(mm: MicroMesh, surface: DrawnSurface, atlas: Atlas, resolut
         f, b = face[y, x], bary[y, x]
         c = surface.X[surface.locate(f, b)[0]]
         m = unit(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]))
-        n = base_point(mm, U, f, b)[1]
+        n = base_point(mm.base, U, f, b)[1]
         normal[y, x] = _in_tangent_frame(m, n, tangents[atlas.faces[f]], b)
     del face, bary
     return ((dilate(normal, filled, padding) + 1.0) * 0.5).astype(np.float32), filled
@@ -159,7 +160,7 @@ def rebuilt_positions(mm: MicroMesh, maps: Maps, nearest: bool = False) -> np.nd
     used = f >= 0
     out = mm.micro_vertex_positions().copy()
     f, b = f[used], b[used]
-    P, n = base_point(mm, unit_directions(mm), f, b)
+    P, n = base_point(mm.base, unit_directions(mm), f, b)
     uv = np.einsum("qk,qkc->qc", b, maps.atlas.corner_uv[f])
     out[used] = P + n * sample(maps.height.astype(np.float64), uv, nearest)[:, None]
     return out

@@ -37,7 +37,7 @@ from ..mesh import TriMesh
 from ..micromesh import MicroMesh
 from ..normalization import unit_sphere_normalization
 from .atlas import Atlas, check_room, checked_resolution, texel_faces
-from .bake import MapsCancelled, unit, unit_directions
+from .bake import MapsCancelled, base_point, unit_directions
 from .lattice import DrawnSurface, Lattice
 from .seams import seam_gap_max, seam_points
 from .texel_solve import closed, pcg
@@ -119,7 +119,7 @@ def fit_height_map(mm: MicroMesh, reference: TriMesh, atlas: Atlas, resolution: 
         if should_stop():
             raise MapsCancelled("height map cancelled")
         progress({"phase": "height map", "iteration": r + 1, "total": rounds + 2})
-        steps, dist = texels.solve(lattice, groups, samples, bound, slopes, should_stop)
+        steps, dist = texels.solve(lattice, d, groups, samples, bound, slopes, should_stop)
         iterations.append(steps)
         moved = texels.SB @ texels.x          # the next bound: as near, but for the move
         bound = dist * np.float32(1 + 1e-6) + np.float32(np.abs((moved - d) * length).max())
@@ -135,7 +135,7 @@ def fit_height_map(mm: MicroMesh, reference: TriMesh, atlas: Atlas, resolution: 
              "seam_gap_max": {str(k): v / mm.base.bbox_diagonal for k, v in gaps.items()},
              "time_s": time.perf_counter() - began}
     d = texels.SB @ x
-    surface = lattice.drawn(frame.invert(lattice.P + lattice.D * d[:, None]), d / frame.scale)
+    surface = lattice.drawn(frame.invert(lattice.P + lattice.D * d[:, None]))
     return HeightMap(height.astype(np.float32), int(level), surface, notes)
 
 
@@ -174,12 +174,13 @@ class _Texels:
                    start.reshape(-1)[grid.texels].copy(),
                    int(len(np.unique(seams.edge[seams.edge >= 0]))))
 
-    def solve(self, lattice: Lattice, groups: list, samples: Samples, bound: np.ndarray,
-              slopes: float, should_stop: Callable[[], bool]) -> tuple[int, np.ndarray]:
-        """One round: the samples matched to the lattice the texels draw now (``bound``:
-        a distance within which each has a triangle), the system over the texels solved
-        from them; (the CG steps it took, each sample's distance to the lattice before)."""
-        d = self.SB @ self.x
+    def solve(self, lattice: Lattice, d: np.ndarray, groups: list, samples: Samples,
+              bound: np.ndarray, slopes: float, should_stop: Callable[[], bool]
+              ) -> tuple[int, np.ndarray]:
+        """One round: the samples matched to the lattice the texels draw now (``d``: its
+        displacements, SB x; ``bound``: a distance within which each sample has a triangle),
+        the system over the texels solved from them; (the CG steps it took, each sample's
+        distance to the lattice before)."""
         X = lattice.P + lattice.D * d[:, None]
         T = lattice.triangles
         matches = GroupedMatches(X, T, groups, samples, bound)
@@ -230,10 +231,7 @@ def _bake(base: TriMesh, U: np.ndarray, ref: TriMesh, face: np.ndarray, bary: np
     h = np.zeros(filled.shape)
     for s in range(0, len(ys), CHUNK):
         y, x = ys[s:s + CHUNK], xs[s:s + CHUNK]
-        f, b = face[y, x], bary[y, x]
-        tri = base.faces[f]
-        P = np.einsum("qk,qkc->qc", b, base.vertices[tri])
-        n = unit(np.einsum("qk,qkc->qc", b, U[tri]))
+        P, n = base_point(base, U, face[y, x], bary[y, x])
         h[y, x] = bake_displacements(P, n, ref, max_distance=reach).displacement
     return _nearest_fill(h, filled)
 

@@ -54,22 +54,20 @@ class Lattice:
         order = spatial_order(base.vertices[base.faces].mean(1))
         return triangle_groups(order, self.face_triangle_ptr, size)
 
-    def drawn(self, X: np.ndarray, d: np.ndarray) -> "DrawnSurface":
-        """The lattice's micro-vertices at ``X`` (n, 3), displaced by ``d`` (n,)."""
-        return DrawnSurface(self.level, X, d, self.face_vertices)
+    def drawn(self, X: np.ndarray) -> "DrawnSurface":
+        """The lattice's micro-vertices at ``X`` (n, 3)."""
+        return DrawnSurface(self.level, X, self.face_vertices)
 
 
 @dataclass(eq=False)
 class DrawnSurface:
     """What a renderer draws from a base and a height map: the lattice of ``level`` on every
-    base face, its micro-vertices at ``X`` (n, 3), ``d`` (n,) their displacements along the
-    interpolated vertex normals (not normalised), ``face_vertices`` (nf, k) each face's
+    base face, its micro-vertices at ``X`` (n, 3), ``face_vertices`` (nf, k) each face's
     micro-vertices in u-major order (the indices of ``MicroMesh.flat``'s topology at the
     same level, as :class:`Lattice`'s)."""
 
     level: int
     X: np.ndarray
-    d: np.ndarray
     face_vertices: np.ndarray
 
     def locate(self, faces: np.ndarray, bary: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

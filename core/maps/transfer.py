@@ -62,7 +62,7 @@ def source_points(mm: MicroMesh, maps: Maps, source: TriMesh, chunk: int = 1 << 
     U = unit_directions(mm)
     for s in range(0, len(ys), chunk):
         y, x = ys[s:s + chunk], xs[s:s + chunk]
-        P, n = base_point(mm, U, face[y, x], bary[y, x])
+        P, n = base_point(mm.base, U, face[y, x], bary[y, x])
         near, sf, _ = nearest_points(P + n * maps.height[y, x, None], source)
         corners = source.vertices[source.faces[sf]]
         yield SourcePoints(y, x, face[y, x], bary[y, x], n, sf, barycentrics(near, corners))
