@@ -16,8 +16,9 @@ def register_glue() -> bool:
     if _glue:
         return True
     from .install import deps
+    from .operators.prefs import site_dir
 
-    deps.ensure_on_path()
+    deps.ensure_on_path(site_dir())
     if deps.missing_modules(deps.GLUE_MODULES):
         return False
     from .operators import registry
@@ -30,17 +31,15 @@ def register_glue() -> bool:
 
 
 def register() -> None:
-    from . import preferences
-    from .ui import setup_panel
+    from .ui import preferences, setup_panel
 
-    preferences.register()
+    preferences.register(on_installed=register_glue)
     setup_panel.register()
     register_glue()
 
 
 def unregister() -> None:
-    from . import preferences
-    from .ui import setup_panel
+    from .ui import preferences, setup_panel
 
     while _glue:
         _glue.pop().unregister()

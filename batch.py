@@ -6,7 +6,7 @@ icosphere displaced by Blender's procedural textures, made at run time), decimat
 within a storage budget. With ``--input`` (one file or a folder of .ply / .obj / .stl / .glb /
 .gltf / .fbx / .usd / .usda / .usdc / .usdz / .blend; a micro-mesh glTF is read as its
 tessellation) it does the same per input: the same workflow as the add-on's panel
-(``operators.pipeline``). Per input NAME it writes ``NAME.blend`` (holding ``NAME_micromesh``
+(``core.workflow``). Per input NAME it writes ``NAME.blend`` (holding ``NAME_micromesh``
 and ``NAME_base``), the micro-mesh for other tools (``NAME.gltf`` + ``.bin`` + ``.bary``; or
 ``--export glb``), with ``--maps RES`` height and normal maps (``NAME_maps`` in the .blend,
 ``NAME_height.png`` (16-bit), ``NAME_height.exr``, ``NAME_normal.png``, ``NAME_base.gltf``
@@ -35,8 +35,7 @@ import micromesh_path  # noqa: E402  (the checkout as the package ``micromesh``)
 micromesh_path.ensure_package()
 from micromesh.cli.args import BatchError, parse_args  # noqa: E402
 from micromesh.cli.interrupt import Interrupt  # noqa: E402
-from micromesh.cli.one_input import process  # noqa: E402
-from micromesh.cli.usage import DEMO_NAME, check_usage, pending  # noqa: E402
+from micromesh.cli.usage import check_usage, pending  # noqa: E402
 from micromesh.core.runtime import compiling  # noqa: E402
 
 
@@ -90,41 +89,21 @@ def run_all(args, settings, jobs: list, sets: list, rows: list) -> None:
     """Each input in a fresh scene, its files written as a set (removed again when it fails);
     appends a :class:`cli.summary.Row` per input to ``rows``. Ctrl-C raises
     KeyboardInterrupt."""
-    import bpy
-
+    from micromesh.cli.args import headless_options
+    from micromesh.cli.progress import PhaseProgress
     from micromesh.cli.summary import Row
+    from micromesh.operators import headless
 
-    from micromesh.core.runtime.threads import set_threads
-    from micromesh.operators import sources
-
-    set_threads(args.threads or settings.threads)
-    if not hasattr(bpy.types.Object, "micromesh_source"):
-        from micromesh.operators import props
-
-        props.register()
+    headless.start(args.threads or settings.threads)
+    options = headless_options(args, settings)
     interrupt = Interrupt()
     interrupt.install()
     for path, out in zip(jobs, sets):
         label = path.name if path else "demo"
-        bpy.ops.wm.read_factory_settings(use_empty=True)
         try:
             with out:
-                if path is None:
-                    source = sources.demo_source(DEMO_NAME, subdivisions=args.demo_subdivisions)
-                    print(f"[demo] procedural source '{source.name}': "
-                          f"{sum(len(p.vertices) - 2 for p in source.data.polygons)} triangles",
-                          flush=True)
-                else:
-                    t_read = time.perf_counter()
-                    mb = path.stat().st_size / 2 ** 20
-                    print(f"[{out.name}] reading {path.name} ({mb:.{0 if mb >= 10 else 1}f} MB)",
-                          flush=True)
-                    source = sources.import_source(path, verbose=args.verbose)
-                    source.name = out.name
-                    print(f"[{out.name}] read in {time.perf_counter() - t_read:.1f} s",
-                          flush=True)
                 rows.append(Row(label, "done",
-                                process(bpy, source, args, settings, out, interrupt)))
+                                headless.process(path, out, options, PhaseProgress, interrupt)))
         except (BatchError, ValueError) as e:
             rows.append(Row(label, "failed"))
             print(f"batch.py: error: {label}: {e}", file=sys.stderr, flush=True)

@@ -124,7 +124,7 @@ def _json_default(o: Any) -> Any:
     return str(o)
 
 
-# Procedural meshes live in core.primitives; re-exported for the benchmarks.
-from core.primitives import (  # noqa: E402,F401
+# Procedural meshes live in core.mesh.primitives; re-exported for the benchmarks.
+from core.mesh.primitives import (  # noqa: E402,F401
     icosahedron, icosphere, icosphere_with_vertices, noisy_sphere, subdivided_icosahedron, torus,
 )

@@ -4,7 +4,7 @@ References: procedural noisy spheres of ~200k and ~1M triangles and, where prese
 igea_269k.ply from ../shared/meshes (normalised into the unit sphere). Points: 100k and 1M
 samples on a coarse base (icosphere of radius 0.9, or a radius-1.05 sphere around igea) with
 interpolated normals as directions, like micro-vertices. ``bake`` is
-``core.bake.bake_displacements`` (warm: Embree scene cached; ``scene_s`` is the one-off build);
+``core.spatial.bake.bake_displacements`` (warm: Embree scene cached; ``scene_s`` is the one-off build);
 ``nearest-only`` is the simplest alternative: the exact nearest surface point of every point
 (cKDTree over centroids + point-triangle distance), including its index build, timed on
 the first ``--nearest-points`` points and scaled linearly.
@@ -16,10 +16,10 @@ from __future__ import annotations
 import numpy as np
 
 from _common import MESHES, icosphere, median_time, noisy_sphere, parser, print_table, timed, write_json
-from core import bake as bake_mod
-from core.bake import SOURCE_NEAREST, bake_displacements, nearest_points
-from core.mesh import TriMesh
-from core.normalization import unit_sphere_normalization
+from core.spatial import bake as bake_mod
+from core.spatial.bake import SOURCE_NEAREST, bake_displacements, nearest_points
+from core.mesh.trimesh import TriMesh
+from core.mesh.normalization import unit_sphere_normalization
 from core.runtime.threads import set_threads
 
 

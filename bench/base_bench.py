@@ -18,11 +18,11 @@ from pathlib import Path
 from _common import MESHES, ROOT, parser, print_table, write_json
 from core.base import build_base, topology
 from core.base.build import welded
-from core.closest import ClosestPointIndex
-from core.mesh import TriMesh
-from core.normalization import unit_sphere_normalization
+from core.spatial.closest import ClosestPointIndex
+from core.mesh.trimesh import TriMesh
+from core.mesh.normalization import unit_sphere_normalization
 from core.io.mesh_files import read_mesh
-from core.metrics import isotropy
+from core.micro.metrics import isotropy
 
 
 def measure(ref: TriMesh, base: TriMesh) -> dict:

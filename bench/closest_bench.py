@@ -1,11 +1,11 @@
-"""Exact closest point on a mesh: the numba BVH (``core.closest``) vs the previous method.
+"""Exact closest point on a mesh: the numba BVH (``core.spatial.closest``) vs the previous method.
 
 References: a procedural noisy sphere of ~300k triangles and, where present, igea_269k.ply
 from ../shared/meshes; both normalised into the unit sphere. Points: ``near`` = random surface
 points (area-weighted) moved along their face normal by N(0, 0.01); ``far`` = moved by ±0.3
 (a third of the radius). ``bvh`` is ``ClosestPointIndex.query`` (one warm call: kernels
 loaded and index built before; ``build_s`` is the one-off build). ``ckdtree`` is the simplest alternative and what
-``core.bake.nearest_points`` did before: a cKDTree over centroids, k nearest centroids + the
+``core.spatial.bake.nearest_points`` did before: a cKDTree over centroids, k nearest centroids + the
 exact point–triangle distance, with a certificate that escalates k (then a ball query) until
 exact. It is timed on the first ``--baseline-points`` points (index build included) and scaled
 linearly to n (column ``scaled``); its distances are checked against the BVH's on that subset.
@@ -20,9 +20,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from _common import MESHES, noisy_sphere, parser, print_table, timed, write_json
-from core.closest import ClosestPointIndex
-from core.mesh import TriMesh
-from core.normalization import unit_sphere_normalization
+from core.spatial.closest import ClosestPointIndex
+from core.mesh.trimesh import TriMesh
+from core.mesh.normalization import unit_sphere_normalization
 from core.runtime.threads import set_threads
 
 

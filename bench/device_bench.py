@@ -28,12 +28,12 @@ from _common import ROOT, add_child_option, parser, print_table, write_json
 def run_one(mesh: str | None, device: str, out: str, profile: bool = False) -> dict:
     import torch
 
-    from core import primitives
+    from core.mesh import primitives
     from core.construct import construct
     from core.io.micromesh_export import write_micromesh
-    from core.mesh import TriMesh
+    from core.mesh.trimesh import TriMesh
     from core.io.mesh_files import read_mesh
-    from core.settings import preset
+    from core.settings.fields import preset
 
     ref = read_mesh(mesh) if mesh else TriMesh(*primitives.noisy_sphere(40_000, seed=3))
     name = Path(mesh).stem if mesh else "noisy_sphere"

@@ -1,6 +1,6 @@
 """First run: seconds from the start of a process to the first optimisation iteration of a
 default construction (50k-triangle noisy sphere), from an empty kernel cache (cold: every
-kernel compiled on the way) next to the same after the warm-up (``core.runtime.warm``, what
+kernel compiled on the way) next to the same after the warm-up (``core.construct.warm``, what
 the add-on runs in the background when it is enabled), and the warm-up's own time. Target
 (issue 13): the first iteration within 15 s of the start.
 
@@ -34,14 +34,14 @@ from core.runtime import precompile
 missing = sum(not precompile.cached(e) for e in precompile.load())
 threads = int(sys.argv[3])
 if sys.argv[2] == "warm":
-    from core.runtime.warm import warm
+    from core.construct.warm import warm
     warm()
     print(json.dumps({"seconds": time.perf_counter() - t0, "compiled": len(compiled),
                       "missing": missing}))
     sys.exit(0)
 from core.construct import construct, preset
 from core.mesh import TriMesh
-from core.primitives import noisy_sphere
+from core.mesh.primitives import noisy_sphere
 class First(Exception):
     pass
 def progress(p):

@@ -18,11 +18,11 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from _common import parser, print_table, timed, write_json
-from core import primitives
-from core.bake import bake_displacements
+from core.mesh import primitives
+from core.spatial.bake import bake_displacements
 from core.fit import fit_displacements, fit_samples, normal_equations, solve_normal_equations
-from core.mesh import TriMesh
-from core.micromesh import MicroMesh
+from core.mesh.trimesh import TriMesh
+from core.micro.micromesh import MicroMesh
 from core.runtime.threads import set_threads
 
 

@@ -16,11 +16,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from core.io.ply import write_ply  # noqa: E402
-from core.primitives import holed_plate, noisy_sphere, torus  # noqa: E402
+from core.mesh.primitives import holed_plate, noisy_sphere, torus  # noqa: E402
 
 
 def plate(genus: int, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`core.primitives.holed_plate`, its corners rounded off a little by a smooth
+    """:func:`core.mesh.primitives.holed_plate`, its corners rounded off a little by a smooth
     bulge (a cast part rather than voxels)."""
     v, f = holed_plate(genus, k)
     c = (v.max(0) + v.min(0)) / 2

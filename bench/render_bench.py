@@ -99,7 +99,7 @@ def run_one(backend: str, device: str, triangles: int, res: int, views: int, rep
             profile: bool = False) -> dict:
     import torch
 
-    from core.cameras import fibonacci_cameras
+    from core.render.cameras import fibonacci_cameras
     from core.runtime.memory import keep_large_allocations
     from core.render import rasterize, reference_images, render_loss
 

@@ -26,11 +26,11 @@ from pathlib import Path
 import numpy as np
 
 from _common import MESHES, ROOT, parser, print_table, write_json
-from core import primitives
+from core.mesh import primitives
 from core.construct.estimate import estimate
-from core.mesh import TriMesh
+from core.mesh.trimesh import TriMesh
 from core.io.mesh_files import read_mesh, write_ply
-from core.settings import preset
+from core.settings.fields import preset
 
 SIZES = {"20k": 20_000, "100k": 100_000, "300k": 300_000, "1M": 1_000_000, "2M": 2_000_000}
 SHARED = {"20k": "rocker_arm_20k", "100k": "lucy_100k", "300k": "igea_269k"}

@@ -15,8 +15,8 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from _common import icosphere_with_vertices, median_time, parser, print_table, timed, write_json
-from core.laplacian import uniform_laplacian
-from core.screened import ScreenedSolver
+from core.solvers.laplacian import uniform_laplacian
+from core.solvers.screened import ScreenedSolver
 from core.runtime.threads import set_threads
 
 

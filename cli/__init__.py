@@ -1,2 +1,3 @@
-"""The command line's own parts (``batch.py``): progress on a terminal or in a log, and the
-final table of all inputs. No ``bpy``: they print what the workflow reports."""
+"""The command line's own parts (``batch.py``): its options and checks, progress on a terminal
+or in a log, the final table of all inputs, the Ray driver. They import no ``bpy``: each
+input's Blender part is ``operators.headless``, which they configure."""

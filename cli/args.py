@@ -6,18 +6,17 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..core.io import formats
+from ..core.base import builders
+from ..core.io import formats, inputs
 
 DESCRIPTION = "Headless micro-mesh construction: the add-on's workflow on files or the demo."
-SUFFIXES = (".ply", ".obj", ".stl", ".glb", ".gltf", ".fbx", ".usd", ".usda", ".usdc", ".usdz",
-            ".blend")
 EXIT_CODES = """exit status:
   0    every input done
   1    some inputs failed (each named on one line; the others were done)
   2    bad usage: options, input paths, output folder, results that exist (nothing was done)
   3    internal error (a traceback follows: please report it)
   130  interrupted (Ctrl-C); files of the input in progress are not left behind"""
-
+DEMO_NAME = "demo_rock"          # the demo's source and result
 
 
 class BatchError(ValueError):
@@ -64,9 +63,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--base-error", type=float, default=None,
                    help="bound on the base's distance to the input, relative to its bounding-box "
                         "diagonal (default 1e-3; 0: none)")
-    p.add_argument("--base-method", choices=("collapse", "blender"), default="collapse",
-                   help="collapse: topology-keeping, error-bounded (default); blender: "
-                        "Blender's Decimate modifier")
+    p.add_argument("--base-method", choices=list(builders.BUILDERS), default=None,
+                   help="; ".join(f"{b.key}: {b.description}" for b in builders.BUILDERS.values())
+                   + " (default: the preset's, collapse)")
     p.add_argument("--symmetry", choices=("X", "Y", "Z"), default=None,
                    help="symmetric decimation (with --base-method blender)")
     p.add_argument("--budget", default=None, metavar="AMOUNT",
@@ -129,7 +128,8 @@ def budget_overrides(text: str) -> list[str]:
 
 
 def base_overrides(args: argparse.Namespace) -> list[str]:
-    """``--target-faces`` / ``--ratio`` / ``--base-error`` as settings overrides."""
+    """``--target-faces`` / ``--ratio`` / ``--base-error`` / ``--base-method`` as settings
+    overrides."""
     out = []
     if args.target_faces is not None:
         if args.target_faces < 4:
@@ -143,24 +143,30 @@ def base_overrides(args: argparse.Namespace) -> list[str]:
         if not 0 <= args.base_error < 1:
             raise BatchError("--base-error must be within [0, 1)")
         out.append(f"base_max_error={args.base_error}")
-    if args.symmetry and args.base_method != "blender":
-        raise BatchError("--symmetry needs --base-method blender")
+    if args.base_method is not None:
+        out.append(f"base_method={args.base_method}")
+    if args.symmetry and (args.base_method is None or
+                          builders.get(args.base_method).takes != builders.OBJECT):
+        objects = [b.key for b in builders.BUILDERS.values() if b.takes == builders.OBJECT]
+        raise BatchError(f"--symmetry needs --base-method {' or '.join(objects)}")
     return out
 
 
 def find_inputs(path: str | None) -> list[Path]:
+    """The input file at ``path``, or a folder's files of the input formats (none: the demo)."""
     if path is None:
         return []
     p = Path(path)
     if not p.exists():
         raise BatchError(f"input not found: {p}")
+    suffixes = inputs.suffixes()             # the table of input formats
     if p.is_dir():
-        files = sorted(f for f in p.iterdir() if f.suffix.lower() in SUFFIXES)
+        files = sorted(f for f in p.iterdir() if f.suffix.lower() in suffixes)
         if not files:
-            raise BatchError(f"no {'/'.join(SUFFIXES)} files in {p}")
+            raise BatchError(f"no {'/'.join(suffixes)} files in {p}")
         return files
-    if p.suffix.lower() not in SUFFIXES:
-        raise BatchError(f"unsupported file type '{p.suffix}' ({', '.join(SUFFIXES)})")
+    if p.suffix.lower() not in suffixes:
+        raise BatchError(f"unsupported file type '{p.suffix}' ({', '.join(suffixes)})")
     return [p]
 
 
@@ -175,3 +181,14 @@ def result_suffixes(args: argparse.Namespace) -> tuple[list[str], list[str]]:
     """(the files of one result's formats, the files they may write or not)."""
     chosen = result_formats(args)
     return ([s for f in chosen for s in f.suffixes], [s for f in chosen for s in f.optional])
+
+
+def headless_options(args: argparse.Namespace, settings):
+    """What the command line chose, as ``operators.headless`` runs each input."""
+    from ..core.workflow import Outputs
+    from ..operators.headless import Options
+
+    outputs = Outputs(result_formats(args), args.export, args.values, args.layout,
+                      args.maps or 0, args.ply)
+    return Options(settings, outputs, args.method, args.level, args.preset, args.symmetry,
+                   args.cameras or 0, args.verbose, DEMO_NAME, args.demo_subdivisions)

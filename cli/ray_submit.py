@@ -42,9 +42,15 @@ def one_input_argv(args: argparse.Namespace, path: Path, out) -> list[str]:
 
 
 def task_options(path: Path, settings, args: argparse.Namespace, gpu: bool) -> dict:
-    """The task's Ray options: resources, retries, its name in Ray's tools."""
-    from .task_memory import task_memory
+    """The task's Ray options: resources, retries, its name in Ray's tools. Its memory: the
+    construction's estimate (``core.construct.estimate``, the figure ``batch.py`` prints per
+    input) from the input's triangles, counted without reading the mesh where its format's
+    row says how (``core.io.inputs``), else from the file's size, so that the task asks for
+    too much rather than too little."""
+    from ..core.construct.estimate import estimate
+    from ..core.io.inputs import count_triangles
 
+    memory = int(estimate(count_triangles(path), settings, speed=1.0).peak_bytes)
     return dict(num_cpus=task_threads(args), num_gpus=1 if gpu else 0,
-                memory=task_memory(path, settings), max_retries=RETRIES,
+                memory=memory, max_retries=RETRIES,
                 retry_exceptions=True, name=f"batch.py {path.name}")

@@ -7,11 +7,11 @@ from pathlib import Path
 
 from ..core.io.output_set import OutputError, OutputSet, check_output_folder, output_names
 from ..core.maps.atlas import AtlasError, checked_resolution
-from ..core.overrides import apply_overrides
-from ..core.settings import SettingsError, preset
-from .args import BatchError, base_overrides, budget_overrides, find_inputs, result_suffixes
+from ..core.settings.overrides import apply_overrides
+from ..core.settings.fields import SettingsError, preset
+from .args import (DEMO_NAME, BatchError, base_overrides, budget_overrides, find_inputs,
+                   result_suffixes)
 
-DEMO_NAME = "demo_rock"
 
 
 def check_usage(args: argparse.Namespace):

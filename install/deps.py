@@ -3,8 +3,8 @@
 Blender bundles numpy but not torch, scipy, numba or Embree. The extension does not bundle
 them as wheels (torch alone is hundreds of MB per platform); instead the preferences offer
 "Install Dependencies", which runs Blender's own Python with pip into the extension's user
-folder (``<extension user folder>/site-packages``, kept across extension upgrades), and
-:func:`ensure_on_path` adds that folder to ``sys.path`` at register time. With the ``bpy``
+folder (``<extension user folder>/site-packages``, kept across extension upgrades:
+``operators.prefs.site_dir``), and :func:`ensure_on_path` adds that folder to ``sys.path`` at register time. With the ``bpy``
 wheel (tests, batch.py) the virtual environment already has them.
 """
 from __future__ import annotations
@@ -12,8 +12,6 @@ from __future__ import annotations
 import importlib.util
 import os
 import sys
-
-PACKAGE = __package__.rsplit(".", 1)[0]
 
 # What the core imports, with the pins of requirements.txt (CPU torch from PyTorch's index);
 # per-platform pins as environment markers (``platforms.py``: which platforms, and why not).
@@ -35,24 +33,19 @@ TORCH_CPU_INDEX = "https://download.pytorch.org/whl/cpu"
 GLUE_MODULES = ("numpy", "scipy")
 
 
-def site_dir() -> str:
-    """The folder dependencies are installed into."""
-    import bpy
-
-    try:
-        return bpy.utils.extension_path_user(PACKAGE, path="site-packages", create=True)
-    except (ValueError, RuntimeError):  # not loaded as an extension (scripts, tests)
-        return os.path.join(os.path.dirname(os.path.dirname(__file__)), ".deps")
+# Where the add-on is not loaded as an extension (scripts, tests): the dependency folder.
+FALLBACK_SITE = os.path.join(os.path.dirname(os.path.dirname(__file__)), ".deps")
 
 
-def log_path() -> str:
-    """pip's whole output of the last install: ``install.log`` beside the dependency folder."""
-    return os.path.join(os.path.dirname(site_dir().rstrip(os.sep)), "install.log")
+def log_path(site: str) -> str:
+    """pip's whole output of the last install into the dependency folder ``site``:
+    ``install.log`` beside it."""
+    return os.path.join(os.path.dirname(site.rstrip(os.sep)), "install.log")
 
 
-def ensure_on_path() -> None:
-    """Put the dependency folder on ``sys.path`` (after Blender's own paths)."""
-    path = site_dir()
+def ensure_on_path(site: str) -> None:
+    """Put the dependency folder ``site`` on ``sys.path`` (after Blender's own paths)."""
+    path = site
     if os.path.isdir(path) and path not in sys.path:
         sys.path.append(path)
 

@@ -2,7 +2,7 @@
 why the others are not supported (no ``bpy``).
 
 Measured by resolving the pinned set with ``pip install --dry-run --only-binary=:all:
---platform TAG --python-version 3.11`` (``tests/test_platforms.py`` does it again, so a pin
+--platform TAG --python-version 3.11`` (``tests/core/test_platforms.py`` does it again, so a pin
 that loses its wheels fails CI instead of a user). Per-platform pins are environment markers in
 ``deps.REQUIREMENTS``; ``requirements_for`` evaluates them for a platform other than this one.
 """

@@ -5,8 +5,10 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from ..core.mesh import MeshError, TriMesh
-from . import bl_decimate, bl_mesh, cameras_io
+from ..core.base import builders
+from ..core.mesh.trimesh import MeshError, TriMesh
+from . import bl_decimate, bl_mesh, cameras_io  # noqa: F401  (bl_decimate: Blender's builder)
+from .scene_settings import panel_settings
 
 
 def source_object(context) -> bpy.types.Object | None:
@@ -80,14 +82,16 @@ class MICROMESH_OT_make_base(bpy.types.Operator):
         src = source_object(context)
         notes = []
         uv = None              # Blender's Decimate carries the source's UVs: the base keeps them
+        builder = builders.get(s.base_method.lower())     # the table of base builders
         try:
-            if s.base_method == "COLLAPSE":
-                base, notes = self._collapse(context, src)
+            if builder.takes == builders.ARRAYS:
+                base, notes = self._arrays(context, src, builder)
             else:
                 kw = dict(target_faces=s.target_faces) if s.decimate_mode == "TARGET" else \
                     dict(ratio=s.ratio if s.decimate_mode == "RATIO" else 1 / 32)
-                base, uv = bl_decimate.decimate_object_uvs(
-                    src, symmetry=None if s.symmetry == "NONE" else s.symmetry,
+                base, uv = builder.build(
+                    src, panel_settings(context.scene),
+                    symmetry=None if s.symmetry == "NONE" else s.symmetry,
                     vertex_group=s.vertex_group, vertex_group_factor=s.vertex_group_factor,
                     invert_vertex_group=s.invert_vertex_group, **kw)
         except ValueError as e:
@@ -102,17 +106,14 @@ class MICROMESH_OT_make_base(bpy.types.Operator):
         return {"FINISHED"}
 
     @staticmethod
-    def _collapse(context, src) -> tuple[TriMesh, list[str]]:
-        """core.base with the panel's targets, mapped as Construct maps them; the builder's
-        warnings and notes for the report."""
-        from ..core.base import base_for
-        from .scene_settings import panel_settings
-
+    def _arrays(context, src, builder) -> tuple[TriMesh, list[str]]:
+        """A core builder with the panel's targets, mapped as Construct maps them; the
+        builder's warnings and notes for the report."""
         wm = context.window_manager
         wm.progress_begin(0, 100)
         try:
-            built = base_for(bl_mesh.mesh_to_arrays(src), panel_settings(context.scene),
-                             progress=lambda f: wm.progress_update(int(100 * f)))
+            built = builder.build(bl_mesh.mesh_to_arrays(src), panel_settings(context.scene),
+                                  lambda f: wm.progress_update(int(100 * f)))
         finally:
             wm.progress_end()
         return built.mesh, built.warnings + built.report["notes"]

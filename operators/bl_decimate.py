@@ -6,7 +6,8 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from ..core.mesh import MeshError, TriMesh
+from ..core.base import builders
+from ..core.mesh.trimesh import MeshError, TriMesh
 from .bl_mesh import arrays_to_mesh, mesh_to_arrays, mesh_uvs
 
 
@@ -106,3 +107,21 @@ def _decimate_temp(temp, target_faces, ratio, symmetry, vertex_group, vertex_gro
         return mesh_to_arrays(temp, depsgraph, world=world), mesh_uvs(temp, depsgraph)
     finally:
         scene.collection.objects.unlink(temp)
+
+
+def decimate_base(source: bpy.types.Object, settings, reference_faces: int | None = None,
+                  **options) -> tuple[TriMesh, np.ndarray | None]:
+    """Blender's row of ``core.base.builders``: :func:`decimate_object_uvs` of ``source`` to
+    the settings' target (``base_ratio``, ``base_faces`` of ``reference_faces`` triangles, at
+    least 4) unless ``options`` give ``target_faces`` or ``ratio``; ``options``: the other
+    arguments of :func:`decimate_object_uvs` (symmetry, vertex group)."""
+    if "target_faces" not in options and "ratio" not in options:
+        from ..core.base import target_faces
+
+        n = reference_faces if reference_faces is not None else mesh_to_arrays(source).n_faces
+        options["target_faces"] = max(4, min(target_faces(n, settings.base_ratio,
+                                                          settings.base_faces), n))
+    return decimate_object_uvs(source, **options)
+
+
+builders.implement("blender", decimate_base)

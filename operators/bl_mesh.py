@@ -10,8 +10,8 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from ..core.float32_origin import relative
-from ..core.mesh import MeshError, TriMesh
+from ..core.mesh.float32_origin import relative
+from ..core.mesh.trimesh import MeshError, TriMesh
 
 
 def mesh_arrays(mesh: bpy.types.Mesh) -> tuple[np.ndarray, np.ndarray]:
@@ -112,7 +112,7 @@ def arrays_to_mesh(name: str, vertices: np.ndarray, faces: np.ndarray) -> bpy.ty
 def placed_mesh(name: str, vertices: np.ndarray, faces: np.ndarray
                 ) -> tuple[bpy.types.Mesh, np.ndarray | None]:
     """:func:`arrays_to_mesh` of world-space ``vertices``, relative to their float32 origin
-    where float32 coordinates would blur them (``core.float32_origin``); that origin (None:
+    where float32 coordinates would blur them (``core.mesh.float32_origin``); that origin (None:
     the world's), where :func:`place` puts the object holding the mesh."""
     local, origin = relative(vertices)
     return arrays_to_mesh(name, local, faces), origin

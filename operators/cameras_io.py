@@ -11,9 +11,10 @@ import math
 import bpy
 import numpy as np
 
-from ..core.cameras import Cameras, cameras_from_poses, fibonacci_sphere, look_at, supplement_up
-from ..core.mesh import TriMesh
-from ..core.normalization import unit_sphere_normalization
+from ..core.render.cameras import (Cameras, cameras_from_poses, fibonacci_sphere, look_at,
+                                   supplement_up)
+from ..core.mesh.trimesh import TriMesh
+from ..core.mesh.normalization import unit_sphere_normalization
 
 COLLECTION = "MicroMesh Cameras"
 

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.mesh import TriMesh
+from ..core.mesh.trimesh import TriMesh
 
 SLIVER_ISOTROPY = 0.1     # 2r/R of an equilateral triangle is 1
 DEGENERATE_AREA = 1e-10   # relative to the squared bounding-box diagonal

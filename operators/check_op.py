@@ -6,7 +6,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty
 
-from ..core.mesh import TriMesh
+from ..core.mesh.trimesh import TriMesh
 from . import bl_mesh, check
 from .base_ops import base_arrays, base_object
 

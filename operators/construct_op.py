@@ -1,7 +1,7 @@
 """The Construct operator: modal with a worker thread in the UI, synchronous in background.
 
 All bpy reads happen in the main thread before the worker starts
-(:func:`construct_scene.prepare`); the worker runs the bpy-free :func:`pipeline.run`; the modal
+(:func:`construct_scene.prepare`); the worker runs the bpy-free ``core.workflow``; the modal
 timer drains the job's queue into the scene's run state (:func:`sync_state`) and, when done,
 writes the result (:func:`construct_scene.finish`). Esc or the Cancel button stop the worker; nothing is written.
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 import bpy
 from bpy.props import EnumProperty
 
-from ..core.settings import SettingsError
+from ..core.settings.fields import SettingsError
 from . import base_ops, job
 from .construct_scene import Prepared, finish, prepare
 
@@ -55,9 +55,9 @@ class MICROMESH_OT_construct(bpy.types.Operator):
 
     def _prepare(self, context) -> Prepared | None:
         try:
-            from .. import preferences
+            from . import prefs
 
-            preferences.apply_threads()
+            prefs.apply_threads()
             return prepare(context, self.method.lower())
         except (ValueError, SettingsError) as e:
             self.report({"ERROR"}, str(e))

@@ -1,6 +1,6 @@
 """What a construction reads from the scene and writes back, for the Construct operator and
 ``batch.py`` alike: :func:`prepare` reads source, base, cameras and settings in the main thread
-(the worker then runs the bpy-free :func:`pipeline.run`); :func:`finish` puts the result in."""
+(the worker then runs its :class:`core.workflow.Job`); :func:`finish` puts the result in."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -9,8 +9,9 @@ from functools import partial
 import bpy
 import numpy as np
 
-from ..core.outcome import Outcome
-from . import base_ops, bl_mesh, cameras_io, pipeline, warmup, writeback
+from ..core import workflow
+from ..core.workflow.outcome import Outcome
+from . import base_ops, bl_mesh, cameras_io, warmup, writeback
 from .scene_settings import scene_settings
 
 
@@ -20,7 +21,7 @@ class Prepared:
 
     source: bpy.types.Object
     base_obj: bpy.types.Object | None
-    work: object  # callable(progress, should_stop) -> core.outcome.Outcome
+    work: object  # callable(progress, should_stop) -> core.workflow.outcome.Outcome
 
 
 def prepare(context, method: str = "auto") -> Prepared:
@@ -49,19 +50,14 @@ def prepare(context, method: str = "auto") -> Prepared:
         if cams is None:
             notes.append(f"the camera collection '{s.camera_collection.name}' holds no "
                          f"cameras: {settings.n_views} cameras around the object were used")
-    work = partial(_work, reference, base, cams, settings, levels, s.level, method,
-                   str(s.preset).lower(), notes)
-    return Prepared(src, base_obj, work)
+    job = workflow.Job(reference, settings, base, cams, method, levels, s.level,
+                       str(s.preset).lower(), notes)
+    return Prepared(src, base_obj, partial(_work, job))
 
 
-def _work(reference, base, cams, settings, levels, level, method, preset_name, notes, progress,
-          should_stop):
-    from .. import preferences  # noqa: F401  (threads are pinned in the main thread)
-
+def _work(job: workflow.Job, progress, should_stop) -> Outcome:
     warmup.wait(progress, should_stop)     # a first run: the kernels are being compiled
-    return pipeline.run(reference, base, cams, settings, progress, should_stop,
-                        levels=levels, level=level, method=method, preset_name=preset_name,
-                        input_warnings=notes)
+    return workflow.run(job, progress, should_stop)
 
 
 def finish(context, source, base_obj, outcome: Outcome,

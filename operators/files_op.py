@@ -15,8 +15,8 @@ from ..core.io import formats
 from ..core.io.micromesh_export import Y_UP, ExportError
 from ..core.io.micromesh_import import MicromeshFileError, read_micromesh
 from ..core.io.output_set import OutputSet
-from ..core.metrics import mmt_formula_bytes
-from ..core.outcome import Outcome
+from ..core.micro.metrics import mmt_formula_bytes
+from ..core.workflow.outcome import Outcome
 from . import base_ops, bl_mesh, writeback
 from .maps_object import maps_of
 

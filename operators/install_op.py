@@ -10,6 +10,7 @@ import bpy
 
 from ..install import deps, platforms
 from ..install.pip_job import Install, InstallState
+from .prefs import site_dir
 
 _ACTIVE: Install | None = None
 _LAST: InstallState | None = None     # the last install's outcome, for the panels
@@ -24,13 +25,13 @@ def status() -> tuple[InstallState | None, bool]:
 
 def _start() -> Install:
     global _ACTIVE, _LAST
-    from ..preferences import get_prefs     # not at import: preferences imports this module
+    from .prefs import get_prefs
 
     prefs = get_prefs()
     cuda = bool(prefs and getattr(prefs, "torch_build", "CPU") == "CUDA")
     _LAST = None
-    _ACTIVE = Install(lambda folder: deps.pip_command(folder, cuda=cuda), deps.site_dir(),
-                      deps.log_path(), cuda=cuda).start()
+    _ACTIVE = Install(lambda folder: deps.pip_command(folder, cuda=cuda), site_dir(),
+                      deps.log_path(site_dir()), cuda=cuda).start()
     return _ACTIVE
 
 
@@ -100,14 +101,13 @@ class MICROMESH_OT_install_dependencies(bpy.types.Operator):
         if state.phase != "finished":
             self.report({"ERROR"}, "Install Dependencies failed: " + state.message)
             return {"CANCELLED"}
-        deps.ensure_on_path()
+        deps.ensure_on_path(site_dir())
         missing = deps.missing_modules()
         if missing:
             self.report({"WARNING"}, "Still missing after the install: " + ", ".join(missing))
             return {"FINISHED"}
-        from .. import register_glue
-
-        register_glue()
+        if _ON_INSTALLED is not None:
+            _ON_INSTALLED()
         self.report({"INFO"}, state.message)
         return {"FINISHED"}
 
@@ -161,8 +161,23 @@ def draw_install(layout, prefs=None, offer: bool = True) -> None:
         layout.label(text=download_note(here, getattr(prefs, "torch_build", "CPU")))
     layout.operator("micromesh.install_dependencies", icon="IMPORT")
     if prefs is not None:
-        layout.label(text="Log: " + deps.log_path())
+        layout.label(text="Log: " + deps.log_path(site_dir()))
 
 
 CLASSES = (MICROMESH_OT_install_dependencies, MICROMESH_OT_cancel_install)
-register, unregister = bpy.utils.register_classes_factory(CLASSES)
+_register, _unregister = bpy.utils.register_classes_factory(CLASSES)
+_ON_INSTALLED = None        # what registers the rest of the add-on once its dependencies import
+
+
+def register(on_installed=None) -> None:
+    """The operators; ``on_installed()`` runs after a successful install (the add-on's
+    ``register_glue``)."""
+    global _ON_INSTALLED
+    _ON_INSTALLED = on_installed
+    _register()
+
+
+def unregister() -> None:
+    global _ON_INSTALLED
+    _ON_INSTALLED = None
+    _unregister()

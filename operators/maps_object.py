@@ -20,7 +20,7 @@ import bpy
 import numpy as np
 
 from ..core.maps import Atlas, Maps, texel_faces, unit_directions
-from ..core.micromesh import MicroMesh
+from ..core.micro.micromesh import MicroMesh
 from . import bl_mesh
 from .images import image
 

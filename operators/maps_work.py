@@ -10,8 +10,8 @@ import numpy as np
 
 from ..core.maps import Atlas, AtlasError, Carry, Maps, atlas_from_uvs, carry
 from ..core.maps.make import LEVEL, make_maps
-from ..core.mesh import TriMesh
-from ..core.micromesh import MicroMesh
+from ..core.mesh.trimesh import TriMesh
+from ..core.micro.micromesh import MicroMesh
 from . import bl_mesh, source_texture
 
 

@@ -19,7 +19,7 @@ class MICROMESH_OT_apply_preset(bpy.types.Operator):
     preset: StringProperty(name="Preset", default="default")
 
     def execute(self, context):
-        from ..core.settings import PRESETS, preset
+        from ..core.settings.fields import PRESETS, preset
 
         if self.preset not in PRESETS:
             self.report({"ERROR"}, f"unknown preset {self.preset!r}")
@@ -78,13 +78,13 @@ class MICROMESH_OT_open_report(bpy.types.Operator):
         return obj is not None and obj.get(writeback.DATA_KEY) is not None
 
     def execute(self, context):
-        from .. import preferences
+        from . import prefs
 
         obj = context.active_object
         if obj.get(writeback.REPORT_KEY) is None:
             self.report({"ERROR"}, "This result has no report (metrics were off)")
             return {"CANCELLED"}
-        path = os.path.join(preferences.cache_dir(), f"{bpy.path.clean_name(obj.name)}_report.png")
+        path = os.path.join(prefs.cache_dir(), f"{bpy.path.clean_name(obj.name)}_report.png")
         with open(path, "wb") as f:
             f.write(bytes(obj[writeback.REPORT_KEY]))
         name = f"{obj.name}_report"

@@ -9,6 +9,8 @@ import bpy
 from bpy.props import (BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty,
                        StringProperty)
 
+from ..core.base import builders
+
 PRESET_ITEMS = [
     ("fast", "Fast", "About a minute on a laptop CPU"),
     ("default", "Default", "A few minutes on a CPU"),
@@ -35,9 +37,7 @@ class MICROMESH_PG_settings(bpy.types.PropertyGroup):
     base: PointerProperty(type=bpy.types.Object, poll=_is_mesh, name="Base",
                           description="The low-poly base mesh")
     base_method: EnumProperty(name="Method", default="COLLAPSE", items=[
-        ("COLLAPSE", "Faithful", "Edge collapse that keeps the topology (genus, parts, holes), "
-                                 "bounds the distance to the source and keeps triangles well shaped"),
-        ("BLENDER", "Decimate", "Blender's Decimate modifier (symmetry, vertex group weights)")])
+        (b.key.upper(), b.label, b.description) for b in builders.BUILDERS.values()])
     decimate_mode: EnumProperty(name="Decimate By", default="RATIO", items=[
         ("RATIO", "Ratio", "A fraction of the source's triangles"),
         ("TARGET", "Triangles", "A target triangle count"),

@@ -6,6 +6,7 @@ from bpy.app.handlers import persistent
 
 from ..install import deps
 from . import base_ops, check_op, construct_op, files_op, job, maps_op, misc_ops, props, warmup
+from .prefs import site_dir
 
 CLASSES = (*base_ops.CLASSES, *check_op.CLASSES, *construct_op.CLASSES, *misc_ops.CLASSES, *files_op.CLASSES,
            *maps_op.CLASSES)
@@ -20,7 +21,7 @@ def _stop_on_load(*_args):
 def register():
     import atexit
 
-    deps.ensure_on_path()
+    deps.ensure_on_path(site_dir())
     atexit.register(job.stop_active)  # quitting stops the worker
     props.register()
     for c in CLASSES:

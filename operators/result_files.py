@@ -4,14 +4,13 @@ renderers), the run report, each written into the result's output set
 (``core.io.output_set``) under its temporary name; and the maps made in the scene first."""
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..core.io import formats
-from . import bl_mesh, maps_work, source_texture, writeback
+from . import bl_mesh, maps_work, source_texture
 from .maps_object import maps_object
 from .sources import export_y_up
 
@@ -26,18 +25,6 @@ class SceneMaps:
     record: dict
 
 
-def write_formats(chosen: list, product: formats.Product, out) -> dict:
-    """The ``chosen`` formats' files of ``product`` into ``out``; {format key: what its
-    writer records, with its files' bytes}."""
-    records = {}
-    for fmt in chosen:
-        files, record = formats.write(fmt, product, out.name)
-        for suffix, data in files.items():
-            out.temp(suffix).write_bytes(data)
-        records[fmt.key] = {**record, "bytes_by_file": {s: len(d) for s, d in files.items()}}
-    return records
-
-
 def product(outcome, source, values: str = "r11", layout: str = "bird",
             maps: SceneMaps | None = None) -> formats.Product:
     """What the formats write of ``outcome`` (and its ``maps``), in the input file's
@@ -49,14 +36,6 @@ def product(outcome, source, values: str = "r11", layout: str = "bird",
         p.normal_map = engine_normal_map(maps.baked)
         p.textures = maps.textures
     return p
-
-
-def write_report(outcome, out) -> None:
-    """``NAME.report.png`` and ``NAME.report.json`` (when the run made a report)."""
-    if outcome.report_png:
-        out.temp(".report.png").write_bytes(outcome.report_png)
-        out.temp(".report.json").write_text(json.dumps(writeback._jsonable(outcome.report),
-                                                       indent=1))
 
 
 def gltf_textures(textures, carried: list) -> dict:
@@ -90,7 +69,7 @@ def engine_normal_map(baked: maps_work.Baked) -> np.ndarray:
 
 
 def scene_maps(context, outcome, source, resolution: int, progress,
-               base_obj=None) -> SceneMaps:
+               base_obj=None, reference=None) -> SceneMaps:
     """The base with a height map fitted to ``source`` and a normal map: ``<source>_maps`` in
     the scene (images packed), the source's textures carried onto the atlas where its
     material has them (base colour, metallic and roughness, emission); what the formats
@@ -101,7 +80,9 @@ def scene_maps(context, outcome, source, resolution: int, progress,
     t = time.perf_counter()
     textures = source_texture.read(source)
     atlas, note = maps_work.own_atlas(base_obj, mm, resolution)
-    baked = maps_work.bake_with_textures(mm, bl_mesh.mesh_to_arrays(source), resolution,
+    if reference is None:                # the source's arrays, as the construction took them
+        reference = bl_mesh.mesh_to_arrays(source)
+    baked = maps_work.bake_with_textures(mm, reference, resolution,
                                          textures, progress, lambda: False, atlas=atlas,
                                          base_normal=True)
     obj = maps_object(context, source, mm, baked.maps, f"{source.name}_maps")

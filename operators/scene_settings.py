@@ -3,8 +3,8 @@ budget, the text overrides and the preferences (device), read from the scene's `
 property group."""
 from __future__ import annotations
 
-from ..core.overrides import apply_overrides
-from ..core.settings import preset
+from ..core.settings.overrides import apply_overrides
+from ..core.settings.fields import preset
 
 
 def panel_overrides(s) -> dict:
@@ -31,8 +31,8 @@ def panel_settings(scene):
 def scene_settings(scene):
     """The construction settings of the scene: :func:`panel_settings`, then the text
     overrides and the preferences (device, threads)."""
-    from .. import preferences
+    from . import prefs
 
     s = scene.micromesh
     return apply_overrides(panel_settings(scene),
-                           s.overrides.split() + [f"device={preferences.device()}"])
+                           s.overrides.split() + [f"device={prefs.device()}"])

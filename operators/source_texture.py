@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from ..core.mesh import TriMesh
+from ..core.mesh.trimesh import TriMesh
 from . import bl_mesh
 from .images import image
 

@@ -6,10 +6,11 @@ from pathlib import Path
 
 import bpy
 
-from ..core.io.micromesh_import import MicromeshFileError, is_micromesh_file, read_micromesh
+from ..core.io import inputs
 from ..core.io.gltf import GltfError
-from ..core.io.gltf_check import check_gltf
-from ..core.io.mesh_files import read_mesh
+from ..core.io.micromesh_import import MicromeshFileError
+from ..core.mesh.float32_origin import as_stored
+from ..core.mesh.trimesh import TriMesh
 from . import bl_mesh, importer_output
 
 
@@ -53,15 +54,14 @@ def _apply_modifiers(obj) -> None:
         bpy.data.meshes.remove(old)
 
 
-MESH_FILES = (".ply", ".obj", ".stl")                 # read by core.io.mesh_files
-USD_FILES = (".usd", ".usda", ".usdc", ".usdz")
-
-
 def import_source(path: Path, verbose: bool = False):
-    """Import ``path`` into the (empty) scene; returns one mesh object named after the file.
+    """Import ``path`` into the (empty) scene; returns (one mesh object named after the file,
+    its mesh as the construction takes it where we read the file ourselves, else None: the
+    object's arrays are read back from Blender).
 
-    PLY, OBJ and STL go through our own reader (``core.io.mesh_files``), which refuses NaN or
-    infinite coordinates, face indices out of range and files cut short: Blender's importers
+    The input formats' table (``core.io.inputs``) says who reads it. PLY, OBJ and STL go
+    through our own readers, which refuse NaN or infinite coordinates, face indices out of
+    range and files cut short: Blender's importers
     "repair" those silently (NaN becomes 0, faces are dropped); coordinates stay as in the
     file (no axis conversion), so results line up with the input file. A micro-mesh glTF (one
     with ``NV_displacement_micromap``) is read by ``core.io`` and its tessellation is the
@@ -71,42 +71,26 @@ def import_source(path: Path, verbose: bool = False):
     Blender's importers (a glTF checked first by ``core.io.gltf_check``, which names what is
     wrong where the importer would fail or turn infinite positions into zeros); what they
     print stays off the terminal unless ``verbose``, and a failure is said in one line."""
-    ext = path.suffix.lower()
-    mesh = None
-    if ext in MESH_FILES:
-        mesh = read_mesh(path)               # MeshFileError (a ValueError) names the problem
-    elif ext in (".glb", ".gltf") and is_micromesh_file(path):
-        try:                                 # the micro-mesh's own surface is the reference
-            tess = read_micromesh(path).micromesh().tessellate()
-        except MicromeshFileError as e:
-            raise SourceError(str(e)) from None
-        mesh = tess.to_trimesh()
-    elif ext in (".glb", ".gltf"):
-        try:
-            check_gltf(path)
-        except GltfError as e:
-            raise SourceError(str(e)) from None
+    fmt = inputs.format_of(path)
+    if fmt is None:
+        raise SourceError(f"unsupported file type '{path.suffix}'")
+    try:                    # MeshFileError (a ValueError) names the problem in a file of ours
+        mesh = fmt.read(path) if fmt.read is not None else None
+    except (MicromeshFileError, GltfError) as e:
+        raise SourceError(str(e)) from None
     if mesh is not None:
         data, origin = bl_mesh.placed_mesh(path.stem, mesh.vertices, mesh.faces)
         obj = bpy.data.objects.new(path.stem, data)
         bpy.context.scene.collection.objects.link(obj)
         bl_mesh.place(obj, origin)
         obj[FILE_FRAME] = True
-        return obj
+        return obj, TriMesh(as_stored(mesh.vertices), mesh.faces)
     before = set(bpy.data.objects)
     try:
         with importer_output.quiet(show=verbose):
-            if ext in (".glb", ".gltf"):
-                _enable("io_scene_gltf2")
-                bpy.ops.import_scene.gltf(filepath=str(path))
-            elif ext == ".fbx":
-                _enable("io_scene_fbx")
-                bpy.ops.import_scene.fbx(filepath=str(path))
-            elif ext in USD_FILES:
-                bpy.ops.wm.usd_import(filepath=str(path))
-            elif ext == ".blend":
-                bpy.ops.wm.open_mainfile(filepath=str(path))
-                before = set()
+            _IMPORTERS[fmt.importer](path)
+        if fmt.importer == "blend":
+            before = set()
     except RuntimeError as e:
         raise SourceError(f"cannot read: {importer_output.failure(e)}") from None
     meshes = [o for o in bpy.data.objects if o.type == "MESH" and o not in before
@@ -115,11 +99,27 @@ def import_source(path: Path, verbose: bool = False):
     if not meshes:
         raise SourceError(f"no mesh with faces in {path.name}")
     obj = max(meshes, key=lambda o: len(o.data.polygons))
-    if len(meshes) > 1 and ext != ".blend":
+    if len(meshes) > 1 and fmt.importer != "blend":
         with bpy.context.temp_override(active_object=obj, selected_editable_objects=meshes):
             bpy.ops.object.join()
     obj.name = path.stem
-    return obj
+    return obj, None
+
+
+def _gltf(path: Path) -> None:
+    _enable("io_scene_gltf2")
+    bpy.ops.import_scene.gltf(filepath=str(path))
+
+
+def _fbx(path: Path) -> None:
+    _enable("io_scene_fbx")
+    bpy.ops.import_scene.fbx(filepath=str(path))
+
+
+# Blender's importers, by the name the input formats' table gives (``core.io.inputs``)
+_IMPORTERS = {"gltf": _gltf, "fbx": _fbx,
+              "usd": lambda path: bpy.ops.wm.usd_import(filepath=str(path)),
+              "blend": lambda path: bpy.ops.wm.open_mainfile(filepath=str(path))}
 
 
 def _enable(module: str) -> None:

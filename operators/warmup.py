@@ -1,5 +1,5 @@
 """Kernels compiled before the first Construct: when the add-on is enabled in an interactive
-Blender, a process of its own (``core.runtime.warm.command``, at a low priority) checks the
+Blender, a process of its own (``core.construct.warm.command``, at a low priority) checks the
 kernel cache and, where it is cold for this CPU, compiles every kernel a default construction
 calls. A Construct pressed meanwhile waits for it (phase "compiling kernels") instead of
 compiling the same kernels a second time beside it. Its output goes to ``warm.log`` beside
@@ -13,6 +13,7 @@ import time
 from typing import Callable
 
 from ..install import deps
+from .prefs import site_dir
 
 _PROC: subprocess.Popen | None = None
 
@@ -25,14 +26,14 @@ def start() -> subprocess.Popen | None:
 
     if bpy.app.background or _PROC is not None:
         return _PROC
-    from ..core.runtime.warm import command
+    from ..core.construct.warm import command
 
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     package = __package__.rsplit(".", 1)[0]
-    log = os.path.join(os.path.dirname(deps.log_path()), "warm.log")
+    log = os.path.join(os.path.dirname(deps.log_path(site_dir())), "warm.log")
     try:
         with open(log, "w", encoding="utf-8") as out:
-            _PROC = subprocess.Popen(command(root, package, [deps.site_dir()]), stdout=out,
+            _PROC = subprocess.Popen(command(root, package, [site_dir()]), stdout=out,
                                      stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
     except OSError:
         _PROC = None

@@ -7,7 +7,7 @@
 - the base object: optimised positions, per-face ``micromesh_level`` and
   ``micromesh_edge_flags``, per-vertex ``micromesh_direction``;
 - the complete micro-mesh (base, directions, levels, displacements, bounds) as compressed
-  ``.npz`` bytes (``core.outcome.pack``) in the result object's ``micromesh_data`` property, settings / metrics /
+  ``.npz`` bytes (``core.workflow.outcome.pack``) in the result object's ``micromesh_data`` property, settings / metrics /
   history as JSON properties, so it survives saving and can be exported without re-running.
 """
 from __future__ import annotations
@@ -17,15 +17,15 @@ import json
 import bpy
 import numpy as np
 
-from ..core.level_colors import LEVEL_COLORS as CORE_LEVEL_COLORS
-from ..core.micromesh import MicroMesh
-from ..core.outcome import Outcome, pack, unpack
+from ..core.report.level_colors import LEVEL_COLORS as CORE_LEVEL_COLORS
+from ..core.micro.micromesh import MicroMesh
+from ..core.workflow.outcome import Outcome, jsonable, pack, unpack
 from . import bl_mesh
 from .preview import add_preview_modifier
 
 DATA_KEY = "micromesh_data"
 REPORT_KEY = "micromesh_report_png"
-# The colours of levels 0..5 (the report's, core.level_colors), linear RGBA.
+# The colours of levels 0..5 (the report's, core.report.level_colors), linear RGBA.
 LEVEL_COLORS = np.c_[CORE_LEVEL_COLORS[:6], np.ones(6)].astype(np.float32)
 
 
@@ -100,13 +100,13 @@ def write_result(context, source: bpy.types.Object, base_obj: bpy.types.Object |
     obj.micromesh_source = source
     obj.micromesh_base = base_obj
     store_bytes(obj, DATA_KEY, pack(out))
-    obj["micromesh_metrics"] = json.dumps(_jsonable(out.metrics))
-    obj["micromesh_settings"] = json.dumps(_jsonable(out.settings))
-    obj["micromesh_history"] = json.dumps(_jsonable(out.history))
+    obj["micromesh_metrics"] = json.dumps(jsonable(out.metrics))
+    obj["micromesh_settings"] = json.dumps(jsonable(out.settings))
+    obj["micromesh_history"] = json.dumps(jsonable(out.history))
     obj["micromesh_method"] = out.method
     if out.report_png:
         store_bytes(obj, REPORT_KEY, out.report_png)
-        obj["micromesh_report"] = json.dumps(_jsonable(out.report))
+        obj["micromesh_report"] = json.dumps(jsonable(out.report))
     add_preview_modifier(obj)
     if base_obj is not None:
         write_base(base_obj, mm)
@@ -152,20 +152,3 @@ def base_levels(base_obj: bpy.types.Object, tri_polygon: np.ndarray) -> np.ndarr
         return None
     lv = read_attr(mesh, "micromesh_level", dtype=np.int64)
     return np.clip(lv[tri_polygon], 0, 5)
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        v = float(x)
-        return v if np.isfinite(v) else None
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (str, int, bool)) or x is None:
-        return x
-    return str(x)

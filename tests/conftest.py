@@ -1,4 +1,8 @@
-"""Shared test fixtures: the repository root on sys.path and the real-mesh folder."""
+"""Shared test fixtures: the repository root and tests/ on sys.path, and the real-mesh folder.
+
+The tests are in tests/core (no Blender) and tests/blender (bpy, the add-on's operators,
+batch.py); the helpers they share (corpus, shapes, oracles, local_ray) stay here in tests/,
+imported by name (``from shapes import torus``) from either folder."""
 from __future__ import annotations
 
 import os
@@ -8,9 +12,11 @@ from pathlib import Path
 import pytest
 import torch
 
-ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+TESTS = Path(__file__).resolve().parent
+ROOT = TESTS.parent
+for _path in (TESTS, ROOT):        # ROOT first: the repository's packages (core, cli, ...)
+    if str(_path) not in sys.path:
+        sys.path.insert(0, str(_path))
 
 MESHES = Path(os.environ.get("MICROMESH_MESHES", ROOT.parent / "shared" / "meshes"))
 

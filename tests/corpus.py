@@ -1,6 +1,6 @@
 """Messy inputs made from a clean mesh, as users hand them over: triangle soups, STL, USD,
 far from the origin, degenerate faces, T-junctions, holes, non-manifold fins, hundreds of
-parts, non-finite values and broken files. Used by ``tests/test_messy_inputs.py`` and
+parts, non-finite values and broken files. Used by ``tests/blender/test_messy_inputs.py`` and
 ``bench/messy_bench.py``.
 
 Each :class:`Case` says what a user should get: ``same`` (the clean mesh's surface, so its
@@ -23,8 +23,8 @@ if str(ROOT) not in sys.path:
 
 from core.io.gltf import Builder, pack_glb  # noqa: E402
 from core.io.ply import write_ply  # noqa: E402
-from core.mesh import TriMesh  # noqa: E402
-from core.primitives import finned_sphere, noisy_sphere  # noqa: E402
+from core.mesh.trimesh import TriMesh  # noqa: E402
+from core.mesh.primitives import finned_sphere, noisy_sphere  # noqa: E402
 
 OFFSETS = {"offset_2e5": (2e5, -3e5, 1e4), "offset_1e6": (1e6, -1e6, 1e6)}
 

@@ -1,8 +1,8 @@
-"""Procedural test meshes as TriMesh (thin wrappers over core.primitives)."""
+"""Procedural test meshes as TriMesh (thin wrappers over core.mesh.primitives)."""
 from __future__ import annotations
 
-from core import primitives
-from core.mesh import TriMesh
+from core.mesh import primitives
+from core.mesh.trimesh import TriMesh
 
 
 def icosahedron() -> TriMesh:

@@ -11,12 +11,12 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from core.cameras import fibonacci_cameras  # noqa: E402
+from core.render.cameras import fibonacci_cameras  # noqa: E402
 from core.render import (fused_normals, fused_shade, geometry, rasterize, render_loss,  # noqa: E402
                          reference_images, torch_antialias, torch_path, torch_raster,
                          triton_kernels, triton_walk)
 from core.render.types import camera_mvp  # noqa: E402
-from tests.test_render import icosphere, tensors  # noqa: E402
+from tests.core.test_render import icosphere, tensors  # noqa: E402
 
 
 def rel(a: torch.Tensor, b: torch.Tensor) -> float:

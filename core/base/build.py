@@ -4,7 +4,7 @@
 It works in the reference's unit-sphere frame, with coordinates rounded to float32 there, so
 copies of a mesh at any scale or position give the same base (up to that similarity), and on
 the reference with coincident vertices merged (split UV seams or flat-shaded edges of an
-imported file, triangle soups are one surface: ``core.weld``). The
+imported file, triangle soups are one surface: ``core.mesh.weld``). The
 target is a face count, a ratio of the input's faces, or only the error bound (both 0).
 Afterwards it measures what it made: the distance from every reference vertex to the base
 (relative to the bounding-box diagonal), the isotropy, and the topology against the input's,
@@ -18,12 +18,12 @@ from typing import Callable
 
 import numpy as np
 
-from ..closest import ClosestPointIndex
-from ..mesh import MeshError, TriMesh
-from ..normalization import unit_sphere_normalization
-from ..metrics import isotropy
-from ..settings import ConstructSettings
-from ..weld import weld
+from ..spatial.closest import ClosestPointIndex
+from ..mesh.trimesh import MeshError, TriMesh
+from ..mesh.normalization import unit_sphere_normalization
+from ..micro.metrics import isotropy
+from ..settings.fields import ConstructSettings
+from ..mesh.weld import weld
 from .decimate import decimate
 from .refine import refine as refined
 from .surface_flips import surface_flips
@@ -59,7 +59,7 @@ def target_faces(n_faces: int, ratio: float = 0.0, faces: int = 0) -> int:
 
 
 def welded(mesh: TriMesh) -> TriMesh:
-    """``mesh`` with coincident vertices merged (``core.weld``) and the faces that then repeat a
+    """``mesh`` with coincident vertices merged (``core.mesh.weld``) and the faces that then repeat a
     vertex dropped: files often split vertices along UV seams or flat-shaded edges, or are
     triangle soups, which would make every patch a part of its own."""
     try:

@@ -13,7 +13,7 @@ from typing import Callable
 import numpy as np
 
 from ..runtime.jit import kernel
-from ..mesh import TriMesh
+from ..mesh.trimesh import TriMesh
 from . import heap
 from .collapse import (RING, STATUS_EXHAUSTED, STATUS_GROW, STATUS_STEPS, STATUS_TARGET,
                        candidate, collapse, geometry_ok)

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..mesh import TriMesh
+from ..mesh.trimesh import TriMesh
 
 # Two equilateral triangles on an edge of length l have area √3/2 · l²: this weighs them
 # 2 l² (the factor as measured in docs/results.md).

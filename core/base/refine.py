@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..closest import ClosestPointIndex
-from ..mesh import TriMesh
+from ..spatial.closest import ClosestPointIndex
+from ..mesh.trimesh import TriMesh
 
 ROUND_SHARE = 0.05     # at most this fraction of the faces split in one round
 MAX_EXTRA = 0.12       # and at most this fraction more faces in all

@@ -22,10 +22,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..closest import ClosestPointIndex
-from ..mesh import TriMesh
-from ..metrics import triangle_isotropy
-from ..point_triangle import pair_distances
+from ..spatial.closest import ClosestPointIndex
+from ..mesh.trimesh import TriMesh
+from ..micro.metrics import triangle_isotropy
+from ..spatial.point_triangle import pair_distances
 
 GAIN_SHARE = 0.1      # a flip must bring the quad's reference this much closer
 QUALITY_SLACK = 0.2   # and may lower the worse triangle's 2r/R by at most this

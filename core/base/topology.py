@@ -8,7 +8,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from ..mesh import TriMesh
+from ..mesh.trimesh import TriMesh
 
 
 @dataclass(frozen=True)

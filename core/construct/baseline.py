@@ -7,17 +7,16 @@ from typing import Callable
 
 import numpy as np
 
-from ..bounds import baked, tight_bounds, unit_bounds
-from ..losses import mean_edge_length
-from ..mesh import TriMesh
-from ..normalization import unit_sphere_normalization
-from ..metrics import PhaseTimer
-from ..micromesh import MicroMesh
-from ..settings import ConstructSettings, preset
+from ..micro.bounds import baked, tight_bounds, unit_bounds
+from .losses import mean_edge_length
+from ..mesh.trimesh import TriMesh
+from ..mesh.normalization import unit_sphere_normalization
+from ..micro.metrics import PhaseTimer
+from ..micro.micromesh import MicroMesh
+from ..settings.fields import ConstructSettings, preset
 from ..runtime.threads import set_threads
 from .evaluate import evaluate
-from .frame import check_inputs, check_reference, prepare_base, to_caller_frame
-from .reference import oriented_reference
+from .frame import check_inputs, check_reference, oriented, prepare_base, to_caller_frame
 from .scene import bake
 from .types import ConstructResult, Progress
 
@@ -28,7 +27,7 @@ def staged_baseline(reference: TriMesh, base: TriMesh | None, level,
                     should_stop: Callable[[], bool] | None = None) -> ConstructResult:
     """``base`` at ``level`` (one int, or one per face), directions ``direction_normals``,
     displacements by projection baking (nearest of the two ray hits within two mean base edge
-    lengths, nearest-point fallback), tight bounds folded in (``core.bounds.baked``).
+    lengths, nearest-point fallback), tight bounds folded in (``core.micro.bounds.baked``).
     ``base`` None: the settings' base is built first, as :func:`core.construct.construct`
     does (``metrics["base"]``); ``metrics["warnings"]`` as there. ``progress``/``should_stop`` serve the base building."""
     s = (settings or preset("default")).validate()
@@ -37,7 +36,7 @@ def staged_baseline(reference: TriMesh, base: TriMesh | None, level,
     else:
         check_inputs(reference, base)
     set_threads(s.threads)
-    reference, warnings = oriented_reference(reference)
+    reference, warnings = oriented(reference)
     base, base_report, base_warnings = prepare_base(reference, base, s, progress, should_stop)
     warnings += base_warnings
     if progress is not None:

@@ -1,13 +1,17 @@
-"""Which faces get which level (method §5): Algorithm 1 at each subdivision event, Algorithm 2
-after the run, and the storage budget spent by visual gain in both."""
+"""Which faces get which level (method §5): Algorithm 1 at each subdivision event
+(:func:`subdivide`: the per-face errors measured, the next levels chosen, the new
+micro-vertices given their displacements, those that existed keeping their optimised
+values), Algorithm 2 after the run, and the storage budget spent by visual gain in both."""
 from __future__ import annotations
 
 import numpy as np
 
-from ..lod import (exchange_to_budget, in_optimization_lod, post_process_lod, relative_gain,
-                   roll_back_to_budget, trim_to_budget)
-from ..micromesh import MicroMesh
-from ..mesh_levels import balance_levels, face_edge_levels
+from ..lod import (effective_micro_triangles, exchange_to_budget, in_optimization_lod,
+                   post_process_lod, relative_gain, roll_back_to_budget, trim_to_budget)
+from ..micro.levels import balance_levels, face_edge_levels
+from ..micro.micromesh import MicroMesh
+from ..spatial.bake import SOURCE_NEAREST, bake_displacements
+from .params import Parameters
 from .scene import face_errors
 from .state import RunState
 
@@ -143,3 +147,47 @@ def _exchanged(run: RunState, lv: np.ndarray, ups: np.ndarray, E: np.ndarray
     up = (new < s.max_level) & (face_edge_levels(base, new)[0].min(axis=1) >= new)
     return trim_to_budget(new, np.where(up, new + 1, new),
                           np.where(up, E / 4.0 ** new, -np.inf), run.cost, run.budget)
+
+
+def subdivide(run: RunState, params: Parameters, it: int) -> None:
+    """One level up where the LOD and the budget allow; ``run.level`` advances either way."""
+    s = run.s
+    cur = params.micromesh()
+    old = cur.levels.copy()
+    errs = face_errors(cur, run.scene, run.lod_cams, s, run.ref_tree) \
+        if (s.lod == "in_optim" or run.budget > 0) else None
+    gains = None
+    if errs is not None and run.last_errors is not None:
+        gains = relative_gain(run.last_errors, errs)
+        run.gains[run.level] = gains
+    new = next_levels(run, old, errs, gains)
+    if errs is not None:
+        run.last_errors = errs
+    if np.array_equal(new, old):
+        run.event(iteration=it, level=run.level + 1, subdivided=0)
+        run.level += 1
+        return
+    nxt, kept = cur.resampled(new)
+    if not kept.all():
+        # New micro-vertices: projected onto the reference ("bake", ours), or onto the
+        # current displaced surface ("interpolate", the paper's rule made exact: each lies on
+        # the surface it subdivides); "rebake" projects every micro-vertex onto the
+        # reference again (the measurement's alternative). The warm-up left the level-0
+        # values at zero, untrained: those are baked too. Where a projection falls back to
+        # the nearest point (no ray hit within reach: the spikes of plain baking) the
+        # resampled value stays.
+        warmed = s.base_warm_up and run.level == 0
+        every = s.init_new_levels == "rebake" or (warmed and s.init_new_levels == "bake")
+        todo = np.arange(nxt.n_vertices) if every else np.flatnonzero(~kept)
+        onto = cur.tessellate().to_trimesh() if s.init_new_levels == "interpolate" and \
+            not warmed else run.scene.ref
+        br = bake_displacements(nxt.micro_vertex_base_positions()[todo],
+                                nxt.micro_vertex_directions()[todo], onto,
+                                max_distance=run.bake_distance)
+        d = nxt.displacements.copy()
+        d[todo] = np.where(br.source == SOURCE_NEAREST, d[todo], br.displacement)
+        nxt = nxt.with_displacements(d)
+    params.set_micromesh(nxt)
+    run.event(iteration=it, level=run.level + 1, subdivided=int((new > old).sum()),
+              micro_triangles=effective_micro_triangles(new, run.base))
+    run.level += 1

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..settings import ConstructSettings
+from ..settings.fields import ConstructSettings
 from .schedule import END_SHARE
 from .types import ConstructError
 

@@ -4,16 +4,16 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..bounds import DirectionBounds, shell_volume, tight_bounds
-from ..cameras import Cameras, fibonacci_cameras
+from ..micro.bounds import DirectionBounds, shell_volume, tight_bounds
+from ..render.cameras import Cameras, fibonacci_cameras
 from ..io.file_size import micromesh_file_bytes
 from ..io.micromesh_export import quantization_error
 from ..lod import effective_micro_triangles
-from ..mesh import TriMesh
-from ..metrics import crack_edges, geometric_error, isotropy, mmt_formula_bytes
-from ..micromesh import MicroMesh
+from ..mesh.trimesh import TriMesh
+from ..micro.metrics import crack_edges, geometric_error, isotropy, mmt_formula_bytes
+from ..micro.micromesh import MicroMesh
 from ..render import reference_images, render
-from ..settings import ConstructSettings
+from ..settings.fields import ConstructSettings
 from .frame import device as torch_device
 
 

@@ -2,7 +2,7 @@
 displacements (``core.fit``), levels moved to where the fit still misses the reference and
 fitted again (``choose_levels.residual_exchange``; kept only where that lowers the shading
 error), bounds folded into the base and the directions (what a file holds:
-``core.bounds.baked``; those of least shell volume, drawn smoother across faces whose
+``core.micro.bounds.baked``; those of least shell volume, drawn smoother across faces whose
 directions differ until they cost the images little, with the displacements fitted again
 under them, where the image error of the metrics' views rises by 1 % at most), the values
 polished against the images within those bounds (``polish``), metrics, and the result in
@@ -13,11 +13,11 @@ import time
 
 import numpy as np
 
-from ..bounds import baked, micromesh_shell_volume, tight_bounds, unit_bounds
-from ..least_volume import lp_bounds
-from ..mesh import TriMesh
-from ..micromesh import MicroMesh
-from ..mesh_levels import balance_levels
+from ..micro.bounds import baked, micromesh_shell_volume, tight_bounds, unit_bounds
+from ..micro.least_volume import lp_bounds
+from ..mesh.trimesh import TriMesh
+from ..micro.micromesh import MicroMesh
+from ..micro.levels import balance_levels
 from ..fit import surface_errors
 from .choose_levels import final_levels
 from .evaluate import eval_cameras, evaluate
@@ -73,16 +73,16 @@ def finalise(run: RunState, mm: MicroMesh, reference: TriMesh, base: TriMesh,
 
 # A thinner shell is kept where the metrics' image error (the MSE behind the report's PSNR)
 # rises by at most this factor (0.04 dB); the least-volume bounds are tried with these
-# smoothings in turn (``core.least_volume.lp_bounds``), until one is kept.
+# smoothings in turn (``core.micro.least_volume.lp_bounds``), until one is kept.
 _IMAGE_TOLERANCE = 1.01
 _SMOOTHINGS = (0.0, 0.25, 0.5, 1.0, 2.0)
 
 
 def folded(run: RunState, mm: MicroMesh, samples, error: float | None = None
            ) -> tuple[MicroMesh, float | None]:
-    """``mm`` with bounds folded into its base and directions (``core.bounds.baked``): its
+    """``mm`` with bounds folded into its base and directions (``core.micro.bounds.baked``): its
     tight bounds, or, after a fit (``samples``) and with ``lp_bounds``, thinner ones: the
-    least-volume bounds (``core.least_volume.lp_bounds``), else the same drawn smoother where the
+    least-volume bounds (``core.micro.least_volume.lp_bounds``), else the same drawn smoother where the
     directions differ, which a file holds more exactly (``_SMOOTHINGS``), each with the
     displacements fitted again under it (:func:`_refitted`). The first whose image error
     from the metrics' views (``scene.image_error``) is at most 1 % above the tight bounds'

@@ -10,9 +10,9 @@ import time
 
 import numpy as np
 
-from ..bounds import micromesh_shell_volume, reach, tight_bounds
+from ..micro.bounds import micromesh_shell_volume, reach, tight_bounds
 from ..fit import Samples, fit_directions, fit_micromesh, fit_samples, surface_errors
-from ..micromesh import MicroMesh
+from ..micro.micromesh import MicroMesh
 from .choose_levels import residual_exchange
 from .state import RunState
 
@@ -104,7 +104,7 @@ def _base_moved(run: RunState, mm: MicroMesh, samples) -> MicroMesh:
     """One fit round with the base vertices as unknowns, but for ``run.held_in_fit``
     (``core.construct.held``), which stay where they are. On parts thinner than the samples'
     spacing a base vertex can be pulled across to the far side, and its shell with it: a
-    vertex whose span (the thickness of its shell, ``core.bounds.reach``) grows past
+    vertex whose span (the thickness of its shell, ``core.micro.bounds.reach``) grows past
     ``_SPAN_GROWTH`` times its span before, plus ``_SPAN_FLOOR`` mean base edges, is put back,
     and the displacements are fitted again around it: a few such vertices would otherwise
     make the shell's cap refuse the whole round."""

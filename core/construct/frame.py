@@ -8,14 +8,15 @@ from typing import Callable
 import numpy as np
 import torch
 
-from ..base import DecimateCancelled, base_for, differences, topology
-from ..bounds import DirectionBounds
-from ..cameras import Cameras, fibonacci_cameras
-from ..mesh import TriMesh
-from ..normalization import Normalization
-from ..micromesh import MicroMesh
-from ..mesh_levels import balance_levels
-from ..settings import ConstructSettings
+from ..base import DecimateCancelled, builders, differences, topology
+from ..mesh.normalization import Normalization
+from ..mesh.reference import oriented_reference
+from ..mesh.trimesh import MeshError, TriMesh
+from ..micro.bounds import DirectionBounds
+from ..micro.levels import balance_levels
+from ..micro.micromesh import MicroMesh
+from ..render.cameras import Cameras, fibonacci_cameras
+from ..settings.fields import ConstructSettings
 from .types import ConstructCancelled, ConstructError, Progress
 
 
@@ -38,6 +39,14 @@ def check_reference(reference: TriMesh) -> None:
                              "degenerate (zero area)")
 
 
+def oriented(reference: TriMesh) -> tuple[TriMesh, list[str]]:
+    """``core.mesh.reference.oriented_reference``; a reference with no surface refused."""
+    try:
+        return oriented_reference(reference)
+    except MeshError as e:
+        raise ConstructError(str(e)) from None
+
+
 def check_inputs(reference: TriMesh, base: TriMesh) -> None:
     if not isinstance(reference, TriMesh) or not isinstance(base, TriMesh):
         raise ConstructError("reference and base must be core.mesh.TriMesh")
@@ -50,11 +59,20 @@ def prepare_base(reference: TriMesh, base: TriMesh | None, s: ConstructSettings,
                  progress: Callable | None = None, should_stop: Callable[[], bool] | None = None
                  ) -> tuple[TriMesh, dict | None, list[str]]:
     """The base to build on and what to say of it: (base, the base builder's report or None,
-    warnings in words). ``base`` None: the settings' base (``core.base.base_for``), with
-    progress reports of phase "base"; its warnings say where it stopped short or differs from
-    the reference. A given base: its topology compared with the reference's."""
+    warnings in words). ``base`` None: the settings' base (``base_method``'s row of
+    ``core.base.builders``), with progress reports of phase "base"; its warnings say where it
+    stopped short or differs from the reference. A given base: its topology compared with the
+    reference's."""
     if base is not None:
         return base, None, differences(topology(reference), topology(base))
+    try:
+        builder = builders.get(s.base_method)
+    except ValueError as e:
+        raise ConstructError(str(e)) from None
+    if builder.takes != builders.ARRAYS:
+        raise ConstructError(f"the base method {builder.key!r} ({builder.label}) works on the "
+                             "source object in Blender: make the base first (Make Base, or "
+                             f"batch.py --base-method {builder.key})")
 
     t0 = time.perf_counter()
 
@@ -68,7 +86,7 @@ def prepare_base(reference: TriMesh, base: TriMesh | None, s: ConstructSettings,
 
     report(0.0)           # before the welding and the quadrics: minutes on 2M faces
     try:
-        built = base_for(reference, s, report, should_stop)
+        built = builder.build(reference, s, report, should_stop)
     except DecimateCancelled:
         raise ConstructCancelled("construction cancelled") from None
     return built.mesh, built.report, list(built.report["warnings"])

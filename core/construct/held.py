@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..closest import closest_point_index
-from ..mesh import TriMesh
+from ..spatial.closest import closest_point_index
+from ..mesh.trimesh import TriMesh
 
 # Points of each base face tested against the reference: the corners, the edge midpoints, the
 # centroid and three points between it and the corners (barycentric weights).

@@ -1,7 +1,7 @@
 """The optimised parameters of a construction and the geometry they make (method §2).
 
 Base offsets O and micro-displacements D are Large-Steps parameters
-(``core.optim.Reparameterized``); a new level replaces the displacement parameter, its
+(``core.solvers.optim.Reparameterized``); a new level replaces the displacement parameter, its
 micro Laplacian and the L_sv groups, and resets its optimiser moments. Geometry per call::
 
     P = V + O;  N = normals(P) (detached);  X = interp @ P + (interp @ N) * D
@@ -11,13 +11,13 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..laplacian import uniform_laplacian
-from ..screened import ScreenedSolver
-from ..losses import scipy_to_torch_sparse, vertex_groups
-from ..mesh import TriMesh
-from ..micromesh import MicroMesh
-from ..optim import Reparameterized, UniformAdam
-from ..settings import ConstructSettings
+from ..solvers.laplacian import uniform_laplacian
+from ..solvers.screened import ScreenedSolver
+from .losses import scipy_to_torch_sparse, vertex_groups
+from ..mesh.trimesh import TriMesh
+from ..micro.micromesh import MicroMesh
+from ..solvers.optim import Reparameterized, UniformAdam
+from ..settings.fields import ConstructSettings
 from .types import ConstructError
 
 

@@ -15,11 +15,11 @@ import time
 import numpy as np
 import torch
 
-from ..laplacian import uniform_laplacian
-from ..micromesh import MicroMesh
-from ..optim import Reparameterized, UniformAdam
+from ..solvers.laplacian import uniform_laplacian
+from ..micro.micromesh import MicroMesh
+from ..solvers.optim import Reparameterized, UniformAdam
 from ..render import render
-from ..screened import ScreenedSolver
+from ..solvers.screened import ScreenedSolver
 from .scene import image_error
 from .state import RunState
 

@@ -3,8 +3,8 @@
 Base offsets and micro-displacements are optimised against rendered images of the reference,
 progressively subdividing with adaptive level of detail. Everything inside runs in the
 unit-sphere frame of the reference; inputs and the result are in the caller's frame. The
-phases: setup (:mod:`.frame`, :mod:`.scene`), initial baking, the loop (:mod:`.loop`,
-:mod:`.schedule`, :mod:`.step`, :mod:`.subdivision`), final levels (:mod:`.choose_levels`),
+phases: setup (:mod:`.frame`, :mod:`.scene`), initial baking, the loop (:mod:`.step`,
+:mod:`.schedule`, :mod:`.choose_levels`), final levels (:mod:`.choose_levels`),
 bounds and metrics (:mod:`.finalise`).
 """
 from __future__ import annotations
@@ -16,21 +16,20 @@ from typing import Callable
 import numpy as np
 import torch
 
-from ..cameras import Cameras
+from ..render.cameras import Cameras
 from ..lod import effective_micro_triangles
 from ..runtime.memory import keep_large_allocations, map_large_allocations, release_memory
-from ..mesh import TriMesh
-from ..micromesh import MicroMesh
-from ..settings import ConstructSettings
+from ..mesh.trimesh import TriMesh
+from ..micro.micromesh import MicroMesh
+from ..settings.fields import ConstructSettings
 from ..runtime.determinism import deterministic
 from ..runtime.machine import available_memory_bytes, peak_resident_bytes
 from ..runtime.threads import set_threads
 from .estimate import check_fits, estimate
 from .finalise import finalise
 from .frame import (check_inputs, check_reference, device as torch_device, fixed_levels,
-                    prepare_base)
-from .reference import oriented_reference
-from .loop import optimise
+                    oriented, prepare_base)
+from .step import optimise
 from .params import Parameters
 from .schedule import Schedule
 from .start import initial_micromesh, start_run
@@ -50,7 +49,7 @@ def construct(reference: TriMesh, base: TriMesh | None, cameras: Cameras | None,
 
     ``base`` None: the settings' base (``core.base.base_for``) is built first (phase "base");
     its report is ``metrics["base"]``. The reference's winding is made consistent first
-    (``core.orient``). ``metrics["warnings"]`` lists, in words, which faces were turned, how the
+    (``core.mesh.orient``). ``metrics["warnings"]`` lists, in words, which faces were turned, how the
     base's topology differs from the reference's and where the base builder stopped short.
 
     ``cameras`` (caller's frame) or None for ``settings.n_views`` Fibonacci cameras. Raises
@@ -134,7 +133,7 @@ def _inputs(reference, base, s, kernels, progress, should_stop) -> _Inputs:
     """Phases "reference" (loose parts, repeated faces and the winding; seconds on 1M faces)
     and "base" (built once its kernels are compiled, or the given one compared)."""
     _announce(progress, "reference")
-    reference, warnings = oriented_reference(reference)
+    reference, warnings = oriented(reference)
     kernels.ready(BASE)
     base, report, base_warnings = prepare_base(reference, base, s, progress, should_stop)
     return _Inputs(reference, base, report, warnings + base_warnings)

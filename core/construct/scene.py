@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..bake import bake_displacements
-from ..cameras import Cameras
+from ..spatial.bake import bake_displacements
+from ..render.cameras import Cameras
 from ..lod import chamfer_face_errors, face_error_sums
-from ..mesh import TriMesh
-from ..micromesh import MicroMesh
+from ..mesh.trimesh import TriMesh
+from ..micro.micromesh import MicroMesh
 from ..render import pixel_error, rasterize, reference_images
-from ..settings import ConstructSettings
+from ..settings.fields import ConstructSettings
 from .evaluate import eval_cameras, squared_error
 
 

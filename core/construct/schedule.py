@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import time
 
-from ..settings import ConstructSettings
+from ..settings.fields import ConstructSettings
 
 # The share of the time limit by which the loop and the fit's later passes are done (the
 # bounds, metrics and files come after them).

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..losses import mean_edge_length
-from ..mesh import TriMesh
-from ..micromesh import MicroMesh
-from ..normalization import unit_sphere_normalization
-from ..settings import ConstructSettings
+from ..mesh.normalization import unit_sphere_normalization
+from ..mesh.trimesh import TriMesh
+from ..micro.micromesh import MicroMesh
+from ..settings.fields import ConstructSettings
 from .frame import unit_cameras
+from .losses import mean_edge_length
 from .scene import Scene, bake
 from .state import RunState
 

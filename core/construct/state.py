@@ -8,14 +8,14 @@ from typing import Callable
 
 import numpy as np
 
-from ..cameras import Cameras
+from ..render.cameras import Cameras
 from ..io.file_size import micromesh_file_bytes
 from ..lod import effective_micro_triangles
 from ..lod.expansion import expansion_bytes, nominal_expansion_bytes
-from ..mesh import TriMesh
-from ..normalization import Normalization
-from ..metrics import PhaseTimer
-from ..settings import ConstructSettings
+from ..mesh.trimesh import TriMesh
+from ..mesh.normalization import Normalization
+from ..micro.metrics import PhaseTimer
+from ..settings.fields import ConstructSettings
 from .scene import Scene
 from .types import ConstructCancelled, Progress
 

@@ -5,10 +5,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..bounds import DirectionBounds
-from ..normalization import Normalization
-from ..micromesh import MicroMesh
-from ..settings import ConstructSettings
+from ..micro.bounds import DirectionBounds
+from ..mesh.normalization import Normalization
+from ..micro.micromesh import MicroMesh
+from ..settings.fields import ConstructSettings
 
 
 class ConstructError(ValueError):

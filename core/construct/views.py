@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..cameras import Cameras
-from ..mesh import TriMesh
+from ..render.cameras import Cameras
+from ..mesh.trimesh import TriMesh
 from ..render import rasterize
 from .types import ConstructError
 

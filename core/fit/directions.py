@@ -27,8 +27,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..bounds import reach
-from ..micromesh import MicroMesh
+from ..micro.bounds import reach
+from ..micro.micromesh import MicroMesh
 from .joint_sums import joint_system
 from .samples import CHUNK, Samples
 from .solve import solve_normal_equations

@@ -16,9 +16,9 @@ from typing import Iterator
 
 import numpy as np
 
-from ..barycentric import barycentrics
-from ..closest import ClosestPointIndex
-from ..point_triangle import pair_closest
+from ..spatial.barycentric import barycentrics
+from ..spatial.closest import ClosestPointIndex
+from ..spatial.point_triangle import pair_closest
 from .samples import CHUNK, Samples
 
 # Triangles in one tree at a time: about 600 MB while it is built, 250 MB while it is asked.

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..mesh import TriMesh
-from ..micromesh import MicroMesh
+from ..mesh.trimesh import TriMesh
+from ..micro.micromesh import MicroMesh
 from .samples import FitError, fit_samples
 from .solve import solve_normal_equations
 from .system import normal_equations

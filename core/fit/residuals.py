@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..closest import index_on
-from ..micromesh import MicroMesh
+from ..spatial.closest import index_on
+from ..micro.micromesh import MicroMesh
 from .samples import CHUNK, Samples
 
 

@@ -6,8 +6,8 @@ from functools import cache, cached_property
 
 import numpy as np
 
-from ..mesh import TriMesh
-from ..micromesh import MicroMesh
+from ..mesh.trimesh import TriMesh
+from ..micro.micromesh import MicroMesh
 
 # At most 4**_MAX_LEVEL samples on one reference face.
 _MAX_LEVEL = 5

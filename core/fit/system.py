@@ -14,10 +14,10 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..barycentric import barycentrics
-from ..closest import index_on
-from ..laplacian import uniform_laplacian
-from ..micromesh import MicroMesh
+from ..spatial.barycentric import barycentrics
+from ..spatial.closest import index_on
+from ..solvers.laplacian import uniform_laplacian
+from ..micro.micromesh import MicroMesh
 from .joint_sums import joint_system
 from .rows import row_system
 from .samples import CHUNK, Samples
@@ -90,7 +90,7 @@ _KEEP = 0.03
 def regularisation(T: np.ndarray, D: np.ndarray, smoothness: float, size: int
                    ) -> sp.csr_matrix:
     """The smoothness of the displacement as a length (|D_k| d_k: the same weight whether
-    the directions are unit or scaled by folded bounds, ``core.bounds.baked``) and 1e-9 I,
+    the directions are unit or scaled by folded bounds, ``core.micro.bounds.baked``) and 1e-9 I,
     over the first n = len(D) unknowns of a ``size``-unknown system (padded in CSR: a
     block_diag goes through triplets, as large as the system at a million unknowns)."""
     n = len(D)
@@ -144,7 +144,7 @@ def sample_matches(X: np.ndarray, topology, samples: Samples, chunk: int):
     """Per about ``chunk`` samples in order: (points (c, 3), normals (c, 3), weights (c,),
     matched micro-triangles (c,), their corners (c, 3), the closest points' barycentrics
     (c, 3)) on the micro-surface of micro-vertices ``X`` and ``topology``'s triangles (their
-    index: ``core.closest.index_on``, one tree per topology, refitted round by round)."""
+    index: ``core.spatial.closest.index_on``, one tree per topology, refitted round by round)."""
     T = topology.triangles
     index = index_on(X, T, topology)
     for _, pts, normals, weights in samples.chunks(chunk):

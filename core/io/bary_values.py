@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..metrics import packed11_block_bytes, values_per_triangle
+from ..micro.metrics import packed11_block_bytes, values_per_triangle
 from .bary import (R8_UNORM, R11_UNORM_PACK16, R11_UNORM_PACKED_ALIGN32, R16_UNORM, R32_SFLOAT,
                    BaryError, BaryFile)
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..metrics import packed11_block_bytes, values_per_triangle
+from ..micro.metrics import packed11_block_bytes, values_per_triangle
 
 U16_MAX_VERTICES = 65535       # u16 indices hold 0..65534 (glTF reserves 65535, a restart)
 _BARY_HEADER, _PROPERTY_INFO = 40, 64

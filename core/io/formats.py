@@ -19,7 +19,7 @@ from .images import HeightCode, exr_half, png
 
 if TYPE_CHECKING:      # the writers import what they write with when they run: the table
     from ..maps import Maps                # is read at batch.py's start, before the heavy
-    from ..micromesh import MicroMesh      # imports
+    from ..micro.micromesh import MicroMesh      # imports
 
 MICROMESH, MAPS = "micromesh", "maps"
 # The source's textures carried onto the atlas, by glTF material slot: their files' suffixes.

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..float32_origin import node_translation, relative
+from ..mesh.float32_origin import node_translation, relative
 from ..maps import Maps, unit_directions, vertex_tangents
-from ..micromesh import MicroMesh
+from ..micro.micromesh import MicroMesh
 from .gltf import Builder
 from .images import HeightCode
 from .micromesh_export import Y_UP

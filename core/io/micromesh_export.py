@@ -5,7 +5,7 @@
 Identity triangle mapping (no ``mapIndices``, ``mapOffset`` 0), one group, one value format per
 file: what NVIDIA's reference reader supports. Values are stored in [0, 1] between per-vertex
 direction bounds folded into the positions and directions, as micromesh-tools writes them
-(``core.bounds.baked``): a micro-vertex is ``lerp(P + D·bias) + lerp(D·scale)·value``, the
+(``core.micro.bounds.baked``): a micro-vertex is ``lerp(P + D·bias) + lerp(D·scale)·value``, the
 same surface a ``directionBounds`` accessor would give, without one. Each datum is written once:
 directions and edge flags as accessors (not again as ``.bary`` mesh properties), the levels in
 the ``.bary``'s triangle records, indices as u16 where they fit. ``core.io.file_size`` counts
@@ -20,11 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bounds import DirectionBounds, baked, normalized_values, tight_bounds
-from ..float32_origin import node_translation, relative
-from ..micromesh import MicroMesh
-from ..level_grid import BUILD_MAX_LEVEL
-from ..mesh_levels import edge_flags
+from ..micro.bounds import DirectionBounds, baked, normalized_values, tight_bounds
+from ..mesh.float32_origin import node_translation, relative
+from ..micro.micromesh import MicroMesh
+from ..micro.level_grid import BUILD_MAX_LEVEL
+from ..micro.levels import edge_flags
 from .bary import (LAYOUT_BIRD, LAYOUT_UMAJOR, R11_UNORM_PACK16, R11_UNORM_PACKED_ALIGN32,
                    BaryFile, Group, TRIANGLE, encode)
 from .bary_values import FORMAT_NAMES, encode_values, quantize11
@@ -80,7 +80,7 @@ def quantization_error(mm: MicroMesh, bounds: DirectionBounds | None = None,
 
 
 def to_bary(mm: MicroMesh, value_format: str = "r11", layout: str = "bird") -> BaryFile:
-    """The ``.bary`` of a micro-mesh whose bounds are folded in (``core.bounds.baked``: its
+    """The ``.bary`` of a micro-mesh whose bounds are folded in (``core.micro.bounds.baked``: its
     displacements are the values, in [0, 1]): values, one group, triangles and per-triangle
     min/max (the directions and flags are the glTF's accessors)."""
     fmt = FORMAT_NAMES[value_format]

@@ -7,10 +7,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..mesh import TriMesh
-from ..micromesh import MicroMesh, MicroMeshError
-from ..level_grid import LevelError, snap_targets
-from ..mesh_levels import edge_flags, is_balanced
+from ..mesh.trimesh import TriMesh
+from ..micro.micromesh import MicroMesh, MicroMeshError
+from ..micro.level_grid import LevelError, snap_targets
+from ..micro.levels import edge_flags, is_balanced
 
 
 class MicromeshFileError(ValueError):

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..level_grid import MAX_LEVEL, bird_order
+from ..micro.level_grid import MAX_LEVEL, bird_order
 from .bary import LAYOUT_BIRD, BaryError, decode
 from .bary_values import decode_values
 from .gltf import Document, GltfError

@@ -6,7 +6,7 @@ UVs ``primvars:st``, no subdivision scheme, and a ``UsdPreviewSurface`` whose
 
 USD's ``st`` has t = 0 at the image's bottom, as our v: the UVs go in as they are. All of
 ``usd-core``'s validators (``pxr.UsdValidation``, what ``usdchecker`` runs) pass on it
-(``tests/test_usd.py``).
+(``tests/core/test_usd.py``).
 """
 from __future__ import annotations
 
@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..float32_origin import relative
+from ..mesh.float32_origin import relative
 from ..maps import Maps, unit_directions
-from ..micromesh import MicroMesh
+from ..micro.micromesh import MicroMesh
 from .images import HeightCode
 from .micromesh_export import Y_UP
 

@@ -4,12 +4,12 @@ budget of micro-triangles or bytes.
 
 The one-ring of a base face is the faces sharing a vertex with it (``TriMesh.face_neighbors_csr``);
 the ±1 rule is across shared edges, among all the faces on an edge (three or more on a
-non-manifold one: ``core.mesh_levels``, the one definition), which is what the micro-mesh
+non-manifold one: ``core.micro.levels``, the one definition), which is what the micro-mesh
 format's edge flags can stitch.
 """
 from __future__ import annotations
 
-from ..mesh_levels import balance_levels, is_balanced
+from ..micro.levels import balance_levels, is_balanced
 from .algorithms import in_optimization_lod, post_process_lod
 from .budget import exchange_to_budget, roll_back_to_budget, trim_to_budget
 from .counts import effective_micro_triangles, micro_triangle_count, ring_min_max

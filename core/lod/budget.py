@@ -1,14 +1,14 @@
 """Levels within a budget (micro-triangles or bytes; ours): cut the weakest subdivisions,
 exchange ups for roll-backs where the image error says so, roll back the least useful faces.
-The ±1 rule is ``core.mesh_levels``': across every edge, among all the faces on it."""
+The ±1 rule is ``core.micro.levels``': across every edge, among all the faces on it."""
 from __future__ import annotations
 
 from typing import Callable
 
 import numpy as np
 
-from ..mesh import TriMesh
-from ..mesh_levels import balance_levels, face_edge_levels
+from ..mesh.trimesh import TriMesh
+from ..micro.levels import balance_levels, face_edge_levels
 from .criteria import relative_gain
 
 

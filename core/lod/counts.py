@@ -1,11 +1,11 @@
 """Counting micro-triangles of per-face levels, and levels over one-rings (the ±1 rule
-across edges is ``core.mesh_levels``')."""
+across edges is ``core.micro.levels``')."""
 from __future__ import annotations
 
 import numpy as np
 
-from ..mesh import TriMesh
-from ..mesh_levels import face_edge_levels
+from ..mesh.trimesh import TriMesh
+from ..micro.levels import face_edge_levels
 
 
 def ring_min_max(levels: np.ndarray, ring: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -31,7 +31,7 @@ def micro_triangle_count(levels: np.ndarray) -> int:
 def effective_micro_triangles(levels: np.ndarray, mesh: TriMesh) -> int:
     """Micro-triangles the tessellation really has: a face at level l loses 2**(l-1) of them
     along each edge where a face one level coarser lies (the edge decimation that keeps the
-    surface crack-free, ``core.mesh_levels.edge_flags``: all the faces of a non-manifold
+    surface crack-free, ``core.micro.levels.edge_flags``: all the faces of a non-manifold
     edge count)."""
     lv = np.asarray(levels, dtype=np.int64)
     coarser = (face_edge_levels(mesh, lv)[0] == lv[:, None] - 1).sum(axis=1)

@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..io.file_size import mmt_file_bytes
-from ..mesh import TriMesh
-from ..mesh_levels import raised_to_balance
+from ..mesh.trimesh import TriMesh
+from ..micro.levels import raised_to_balance
 
 # micromesh-tools' default decimation target: the input's faces / 32 (``-reduction_fn 32``)
 REDUCTION = 32

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh import TriMesh
+from ..mesh.trimesh import TriMesh
 
 
 class AtlasError(ValueError):

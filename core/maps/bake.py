@@ -16,9 +16,9 @@ from typing import Callable
 
 import numpy as np
 
-from ..bake import bake_displacements, nearest_points
-from ..mesh import TriMesh
-from ..micromesh import MicroMesh
+from ..spatial.bake import bake_displacements, nearest_points
+from ..mesh.trimesh import TriMesh
+from ..micro.micromesh import MicroMesh
 from .atlas import Atlas, dilate, texel_faces, uv_atlas
 from .lattice import DrawnSurface
 

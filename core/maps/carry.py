@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh import TriMesh
-from ..micromesh import MicroMesh
+from ..mesh.trimesh import TriMesh
+from ..micro.micromesh import MicroMesh
 from .bake import Maps
 from .normal_transfer import NormalSink
 from .transfer import TextureSink, checked_uv, source_points

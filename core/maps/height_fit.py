@@ -28,14 +28,14 @@ import numpy as np
 import scipy.sparse as sp
 from scipy import ndimage
 
-from ..bake import bake_displacements
-from ..closest import ClosestPointIndex
+from ..spatial.bake import bake_displacements
+from ..spatial.closest import ClosestPointIndex
 from ..fit.grouped import GroupedMatches, spatial_order
 from ..fit.samples import Samples, reference_samples
 from ..fit.system import displacement_blocks
-from ..mesh import TriMesh
-from ..micromesh import MicroMesh
-from ..normalization import unit_sphere_normalization
+from ..mesh.trimesh import TriMesh
+from ..micro.micromesh import MicroMesh
+from ..mesh.normalization import unit_sphere_normalization
 from .atlas import Atlas, check_room, checked_resolution, texel_faces
 from .bake import MapsCancelled, base_point, unit_directions
 from .lattice import DrawnSurface, Lattice
@@ -80,7 +80,7 @@ def fit_height_map(mm: MicroMesh, reference: TriMesh, atlas: Atlas, resolution: 
 
     Args:
         mm: the micro-mesh whose base and directions the map stands on (world space).
-        reference: the source surface (world space, cleaned: ``core.construct.reference``).
+        reference: the source surface (world space, cleaned: ``core.mesh.reference``).
         atlas: the base's UVs (``core.maps.uv_atlas`` or ``atlas_from_uvs``).
         resolution: the map's width and height in texels.
         level: the lattice level the fit samples (a renderer's tessellation).

@@ -14,9 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fit.grouped import GROUP, spatial_order, triangle_groups
-from ..mesh import TriMesh
-from ..micro_locate import grid_cell
-from ..micromesh import MicroMesh
+from ..mesh.trimesh import TriMesh
+from ..micro.locate import grid_cell
+from ..micro.micromesh import MicroMesh
 from .atlas import Atlas
 
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from typing import Callable
 
-from ..construct.reference import oriented_reference
-from ..mesh import TriMesh
-from ..micromesh import MicroMesh
+from ..mesh.reference import oriented_reference
+from ..mesh.trimesh import TriMesh
+from ..micro.micromesh import MicroMesh
 from .atlas import Atlas, uv_atlas
 from .bake import Maps, drawn_normal_map
 from .height_fit import LEVEL, fit_height_map

@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..mesh import TriMesh
-from ..micromesh import MicroMesh
+from ..mesh.trimesh import TriMesh
+from ..micro.micromesh import MicroMesh
 from .atlas import dilate
 from .bake import Maps, face_tangents, orthogonal_tangent, sample, unit, vertex_tangents
 from .transfer import SourcePoints, checked_image

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh import TriMesh
+from ..mesh.trimesh import TriMesh
 from .atlas import Atlas
 from .bake import sample
 

@@ -13,10 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..bake import nearest_points
-from ..barycentric import barycentrics
-from ..mesh import TriMesh
-from ..micromesh import MicroMesh
+from ..spatial.bake import nearest_points
+from ..spatial.barycentric import barycentrics
+from ..mesh.trimesh import TriMesh
+from ..micro.micromesh import MicroMesh
 from .atlas import dilate, texel_faces
 from .bake import Maps, base_point, sample, unit_directions
 

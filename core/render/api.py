@@ -1,7 +1,7 @@
 """The renderer's public ops: rasterize, render, render_loss, pixel_error, reference_images.
 
 Every op takes torch tensors (verts (N, 3) float, faces (M, 3) integer) and a
-``core.cameras.Cameras`` batch, accepts a precomputed ``Raster`` and a ``backend``:
+``core.render.cameras.Cameras`` batch, accepts a precomputed ``Raster`` and a ``backend``:
 "auto" (numba kernels for CPU tensors, torch for CUDA), "numba" or "torch".
 """
 from __future__ import annotations
@@ -157,7 +157,7 @@ def warm_up(device: str | torch.device = "cpu", *, antialias: bool = True) -> fl
     """
     import time
 
-    from ..cameras import fibonacci_cameras
+    from .cameras import fibonacci_cameras
 
     t0 = time.perf_counter()
     if torch.device(device).type != "cpu":

@@ -58,7 +58,7 @@ def _backward(verts, vn, faces, mvp16, tri, gout, flat: bool, width: int, height
 
 class _Shade(torch.autograd.Function):
     @staticmethod
-    def forward(ctx, verts, vn, faces, mvp, tri_id, flat):
+    def forward(ctx, verts, vn, faces, mvp, tri_id, flat, plain):
         nb, height, width = tri_id.shape
         v = verts.detach().contiguous()
         n = v if vn is None else vn.detach().to(v.dtype).contiguous()
@@ -68,6 +68,7 @@ class _Shade(torch.autograd.Function):
         if out is None:
             raise _Unavailable(triton_kernels.failure)
         ctx.stuff = (v, n, f, m, t, flat, width, height, vn is not None)
+        ctx.plain = plain
         return out.view(nb, height, width, 3)
 
     @staticmethod
@@ -75,32 +76,36 @@ class _Shade(torch.autograd.Function):
         v, n, f, m, t, flat, width, height, has_vn = ctx.stuff
         g = _backward(v, n, f, m, t, gout.contiguous(), flat, width, height)
         if g is None:
-            return _plain_backward(ctx, gout) + (None, None, None, None)
+            if ctx.plain is None:
+                raise RuntimeError(f"the shading backward kernel failed: {triton_kernels.failure}")
+            return _plain_backward(ctx, gout) + (None, None, None, None, None)
         g = g.to(v.dtype)
-        return g[:, :3], (g[:, 3:] if has_vn else None), None, None, None, None
+        return g[:, :3], (g[:, 3:] if has_vn else None), None, None, None, None, None
 
 
 def _plain_backward(ctx, gout):
-    """The plain torch path's gradient, where the backward kernel failed after the forward ran."""
-    from .torch_path import shade_torch
-
+    """The plain path's gradient (``ctx.plain``), where the backward kernel failed after the
+    forward ran."""
     v, n, f, m, t, flat, width, height, has_vn = ctx.stuff
     with torch.enable_grad():
         x = v.clone().requires_grad_(True)
         vn = n.clone().requires_grad_(True) if has_vn else None
-        img = shade_torch(x, f, vn, m.view(-1, 4, 4), t.view(-1, height, width),
-                          "flat" if flat else "shaded", fused=False)
+        img = ctx.plain(x, f, vn, m.view(-1, 4, 4), t.view(-1, height, width),
+                        "flat" if flat else "shaded")
         grads = torch.autograd.grad(img, [x] + ([vn] if has_vn else []), gout)
     return grads[0], (grads[1] if has_vn else None)
 
 
 def shade(verts: torch.Tensor, faces: torch.Tensor, vnormals: torch.Tensor | None,
-          mvp: torch.Tensor, tri_id: torch.Tensor, kind: str) -> torch.Tensor | None:
+          mvp: torch.Tensor, tri_id: torch.Tensor, kind: str, plain=None) -> torch.Tensor | None:
     """(B, H, W, 3) "shaded" (needs ``vnormals``) or "flat" image, background 0,
-    differentiable w.r.t. verts and vnormals; None where the kernels cannot run."""
+    differentiable w.r.t. verts and vnormals; None where the kernels cannot run.
+    ``plain(verts, faces, vnormals, mvp, tri_id, kind)``: the same image without these
+    kernels, whose gradient is used where the backward kernel fails after the forward ran
+    (without it that failure raises)."""
     if not triton_kernels.available(verts.device) or kind not in ("shaded", "flat"):
         return None
     try:
-        return _Shade.apply(verts, vnormals, faces, mvp, tri_id, kind == "flat")
+        return _Shade.apply(verts, vnormals, faces, mvp, tri_id, kind == "flat", plain)
     except _Unavailable:
         return None

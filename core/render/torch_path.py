@@ -73,7 +73,7 @@ def shade_torch(verts: torch.Tensor, faces: torch.Tensor, vnormals: torch.Tensor
     """(B, H, W, C) image of ``kind`` ('shaded', 'flat', 'normal', 'depth', 'mask'), background 0.
     ``fused``: 'shaded' and 'flat' as fused kernels (``fused_shade``; default ``fused_default``)."""
     if fused_default(verts.device) if fused is None else fused:
-        img = fused_shade.shade(verts, faces, vnormals, mvp, tri_id, kind)
+        img = fused_shade.shade(verts, faces, vnormals, mvp, tri_id, kind, plain=_plain_shade)
         if img is not None:
             return img
     nb, height, width = tri_id.shape
@@ -92,3 +92,7 @@ def shade_torch(verts: torch.Tensor, faces: torch.Tensor, vnormals: torch.Tensor
     out = torch.zeros((nb * height * width, val.shape[1]), dtype=verts.dtype, device=verts.device)
     out = out.index_put((index,), val)
     return out.view(nb, height, width, -1)
+
+
+def _plain_shade(verts, faces, vnormals, mvp, tri_id, kind):
+    return shade_torch(verts, faces, vnormals, mvp, tri_id, kind, fused=False)

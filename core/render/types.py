@@ -1,6 +1,6 @@
 """Bundles and input checks shared by every renderer op.
 
-Conventions (see ``core.cameras``): OpenGL clip space, image row 0 at the top, one sample at
+Conventions (see ``core.render.cameras``): OpenGL clip space, image row 0 at the top, one sample at
 each pixel centre (column c, row r) = screen (c + 0.5, r + 0.5). Screen x = (x/w + 1) W / 2,
 screen y = (1 - y/w) H / 2 where (x, y, z, w) = mvp @ (v, 1).
 """
@@ -80,9 +80,9 @@ def check_mesh(verts: torch.Tensor, faces: torch.Tensor) -> tuple[torch.Tensor, 
 
 
 def camera_mvp(cams, device: torch.device) -> torch.Tensor:
-    """(B, 4, 4) float64 world -> clip matrices of a ``core.cameras.Cameras`` on ``device``."""
+    """(B, 4, 4) float64 world -> clip matrices of a ``core.render.cameras.Cameras`` on ``device``."""
     if not hasattr(cams, "mvp") or not hasattr(cams, "width"):
-        raise RenderError("cams must be a core.cameras.Cameras")
+        raise RenderError("cams must be a core.render.cameras.Cameras")
     mvp = np.ascontiguousarray(cams.mvp, dtype=np.float64)
     if not np.isfinite(mvp).all():
         raise RenderError("camera matrices contain NaN or infinity")

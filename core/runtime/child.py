@@ -46,6 +46,6 @@ def command(package_root: str, package_name: str, extra_paths: list[str], module
     """``[python, -c, code, ...]`` that imports the package at ``package_root`` as
     ``package_name`` ("" where ``module``'s first part is itself top-level, as ``core`` is in
     tests) with ``extra_paths`` first on ``sys.path``, then calls ``module.function(*args)``
-    (``module`` relative to the package, e.g. "core.runtime.warm")."""
+    (``module`` relative to the package, e.g. "core.construct.warm")."""
     return [sys.executable, "-c", _CODE, package_root, package_name, module, function,
             str(len(extra_paths)), *extra_paths, *map(str, args)]

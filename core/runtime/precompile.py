@@ -9,8 +9,8 @@ compiles the listed kernels that the on-disk cache lacks for this CPU in one pro
 (:func:`compile_listed`), which write them to the cache; the construction loads them from
 there. On one core nothing is compiled ahead: the run compiles as it goes.
 
-``python -m core.runtime.precompile --write`` records the list again from the warm-up
-construction (``warm``) in a fresh process with an empty cache; a test checks that the list
+``python -m core.construct.warm --write`` records the list again from the warm-up
+construction (``construct.warm``) in a fresh process with an empty cache; a test checks that the list
 leaves the warm-up nothing to compile.
 """
 from __future__ import annotations
@@ -22,6 +22,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Callable
 
 LIST = Path(__file__).with_name("kernels.json")
 _CORE = __name__.rsplit(".", 2)[0]                         # <...>.core
@@ -121,14 +122,14 @@ def usable_cores() -> int:
         return os.cpu_count() or 1
 
 
-def record() -> list[dict]:
-    """The kernels the warm-up construction compiles from Python, with their signatures,
-    seconds and the construction's phase at the time (run it with an empty cache: kernels
-    loaded from the cache are not seen)."""
+def record(run: Callable[[Callable[[str], None]], None]) -> list[dict]:
+    """The kernels ``run(progress)`` (the warm-up construction, ``construct.warm``) compiles
+    from Python, with their signatures, seconds and the construction's phase at the time
+    (``progress`` gets each phase's name). Run it with an empty cache: kernels loaded from the
+    cache are not seen."""
     from numba.core import event
 
     from .jit import _NamedCache
-    from .warm import warm
 
     found, stack, phase = [], [], ["reference"]
 
@@ -148,26 +149,19 @@ def record() -> list[dict]:
     event.register("numba:compile", Listener())
     _RECORDING = True
     try:
-        warm(progress=lambda p: phase.__setitem__(0, p))
+        run(lambda p: phase.__setitem__(0, p))
     finally:
         _RECORDING = False
     return sorted(found, key=lambda e: (e["module"], e["name"], e["signature"]))
 
 
-def _write() -> None:
-    entries = record()
+def write(entries: list[dict]) -> None:
+    """``entries`` (:func:`record`'s) as the list."""
     if not entries:
         raise SystemExit("nothing compiled: the cache is warm; run with an empty NUMBA_CACHE_DIR")
     text = json.dumps({"about": "kernels a construction calls from Python, their signatures, "
                                 "compile seconds and the construction's phase when first "
-                                "called (python -m core.runtime.precompile --write, with an "
+                                "called (python -m core.construct.warm --write, with an "
                                 "empty cache)", "kernels": entries}, indent=1)
     LIST.write_text(text + "\n", encoding="utf-8")
     print(f"{len(entries)} kernels, {sum(e['seconds'] for e in entries):.1f} s, in {LIST}")
-
-
-if __name__ == "__main__":      # from the repository root, core importable as "core"
-    if sys.argv[1:] != ["--write"]:
-        raise SystemExit("usage: NUMBA_CACHE_DIR=<empty folder> python -m "
-                         "core.runtime.precompile --write")
-    importlib.import_module("core.runtime.precompile")._write()

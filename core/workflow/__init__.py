@@ -1,0 +1,10 @@
+"""The workflow without Blender, which the N-panel and ``batch.py`` both only configure: a
+:class:`Job` (the reference and its base, cameras, settings with the preset's name, the
+method) run into an :class:`~core.workflow.outcome.Outcome` (:func:`run`), then the result's files
+(:class:`Outputs`, :func:`write_files`). Blender's part (its own file formats, the scene,
+the ``.blend``) stays in ``operators/``."""
+from .files import Outputs, write_files, write_formats, write_report
+from .job import Cancelled, Job, run
+
+__all__ = ["Cancelled", "Job", "Outputs", "run", "write_files", "write_formats",
+           "write_report"]
