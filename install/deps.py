@@ -27,6 +27,7 @@ REQUIREMENTS = {
     "OpenEXR": ("openexr==3.5.3",),     # the height map's half-float EXR (core.io.images)
     "matplotlib": ("matplotlib==3.10.8",),
     "tqdm": ("tqdm==4.70.1",),          # batch.py's progress bars (plain lines without it)
+    "threadpoolctl": ("threadpoolctl==3.8.0",),   # BLAS on one thread (runtime.threads)
 }
 TORCH_CPU_INDEX = "https://download.pytorch.org/whl/cpu"
 # What the operators and panels need to import at all (the rest is checked when they run).

@@ -1,4 +1,4 @@
-"""One place that pins the thread pools (torch's and ours) to a core count, and
+"""One place that pins the thread pools (torch's and ours to a core count, BLAS to one), and
 :func:`parallel_for`, which runs a compiled kernel over parts of a range on our pool.
 
 Several native pools in one process oversubscribe a small machine; every entry point (tests,
@@ -32,8 +32,9 @@ def default_threads() -> int:
 
 def set_threads(n: int | None = None) -> int:
     """Pin torch's pool and :func:`parallel_for`'s to ``n`` threads (default: the usable
-    cores); returns n. (numba's own pool is never started: no kernel uses ``prange``. Were
-    it started, its OpenMP layer would reset the thread count torch shares.)"""
+    cores), and the BLAS libraries' to one (:func:`pin_blas`); returns n. (numba's own pool is
+    never started: no kernel uses ``prange``. Were it started, its OpenMP layer would reset
+    the thread count torch shares.)"""
     global _THREADS
     n = default_threads() if not n or n < 1 else int(n)
     n = min(n, default_threads())
@@ -41,7 +42,24 @@ def set_threads(n: int | None = None) -> int:
     import torch
 
     torch.set_num_threads(n)
+    pin_blas()
     return n
+
+
+def pin_blas() -> None:
+    """numpy's and scipy's BLAS (OpenBLAS) on one thread, whatever the thread count. Their
+    threaded reductions add in an order that follows their thread count, which came from the
+    environment (``OMP_NUM_THREADS``, which Ray sets to a task's CPUs), so the same input gave
+    other bytes under Ray than in one process. The construction calls BLAS only on small
+    arrays: one thread costs it nothing measurable (``tests/blender/test_determinism.py``).
+    Without threadpoolctl (an install from before it was pinned) they keep their own."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return
+    import scipy.linalg  # noqa: F401  (loads scipy's own BLAS, so that it is pinned too)
+
+    threadpool_limits(1, user_api="blas")
 
 
 def threads() -> int:
