@@ -96,7 +96,7 @@ def write(name: str, out: Path) -> Path:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) < 2:
+    if len(sys.argv) < 2 or sys.argv[1].startswith("-"):     # -h, --help: the usage
         sys.exit(__doc__)
     for name in sys.argv[2:] or GENERATED:
         p = write(name, Path(sys.argv[1]))
