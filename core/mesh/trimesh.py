@@ -32,7 +32,15 @@ def _csr(rows: np.ndarray, cols: np.ndarray, n_rows: int) -> tuple[np.ndarray, n
 
 @dataclass(eq=False)
 class TriMesh:
-    """An indexed triangle mesh. Edge ``i`` of face ``f`` is ``(f[i], f[(i + 1) % 3])``."""
+    """An indexed triangle mesh. Edge ``i`` of face ``f`` is ``(f[i], f[(i + 1) % 3])``.
+
+    Args:
+        vertices: (n, 3) positions, stored as float64.
+        faces: (m, 3) vertex indices, stored as int64; at least one face, every index in range.
+
+    Raises:
+        MeshError: arrays of other shapes, no faces, or an index out of range.
+    """
 
     vertices: np.ndarray
     faces: np.ndarray

@@ -26,7 +26,19 @@ def _numba():
 
 
 def rasterize(verts: torch.Tensor, faces: torch.Tensor, cams, *, backend: str = "auto") -> Raster:
-    """Visible face id and view-space depth per pixel for every camera (no gradient)."""
+    """Visible face id and view-space depth per pixel for every camera (no gradient).
+
+    Args:
+        verts: (N, 3) float vertex positions, world space (CPU: the numba backend; CUDA:
+            torch and Triton).
+        faces: (M, 3) int triangle indices into ``verts``.
+        cams: a :class:`~core.render.cameras.Cameras` batch of B views of H x W pixels.
+        backend: "auto", "numba" or "torch".
+
+    Returns:
+        A :class:`Raster`: ``tri_id`` (B, H, W) int32 (-1: background), ``depth`` (B, H, W),
+        the (B, 4, 4) matrices it used.
+    """
     verts, faces = check_mesh(verts, faces)
     be = check_backend(backend, verts.device)
     mvp = camera_mvp(cams, verts.device)
@@ -51,12 +63,23 @@ def _prepare(verts, faces, cams, raster, backend):
 
 def render(verts: torch.Tensor, faces: torch.Tensor, cams, *, kind: str = "shaded",
            raster: Raster | None = None, antialias: bool = True, backend: str = "auto") -> torch.Tensor:
-    """(B, H, W, C) image differentiable w.r.t. verts; background 0.
+    """An image per camera, differentiable w.r.t. ``verts``.
 
-    kind: "shaded" (C=3, SH lighting of interpolated, normalised area-weighted vertex normals),
-    "flat" (C=3, the same lighting of each face's own normal: facets, as a ray tracer shows
-    micro-triangles without shading normals), "normal" (C=3, world-space unit normal),
-    "mask" (C=1), "depth" (C=1, view-space depth).
+    Args:
+        verts: (N, 3) float vertex positions, world space.
+        faces: (M, 3) int triangle indices.
+        cams: B views of H x W pixels (:class:`~core.render.cameras.Cameras`).
+        kind: "shaded" (C=3, SH lighting of interpolated, normalised area-weighted vertex
+            normals), "flat" (C=3, the same lighting of each face's own normal: facets, as a
+            ray tracer shows micro-triangles without shading normals), "normal" (C=3,
+            world-space unit normal), "mask" (C=1) or "depth" (C=1, view-space depth).
+        raster: :func:`rasterize`'s result for the same mesh and cameras, to reuse (None:
+            made here).
+        antialias: silhouette edges antialiased (the gradient at silhouettes comes from it).
+        backend: "auto", "numba" or "torch".
+
+    Returns:
+        (B, H, W, C) image; background 0.
     """
     if kind not in KINDS:
         raise RenderError(f"kind must be one of {KINDS}, got {kind!r}")
@@ -105,8 +128,16 @@ def _check_shading(kind: str) -> str:
 def render_loss(verts: torch.Tensor, faces: torch.Tensor, cams, target: torch.Tensor, *,
                 raster: Raster | None = None, antialias: bool = True, kind: str = "shaded",
                 backend: str = "auto") -> torch.Tensor:
-    """Scalar mean |render(kind) - target| over B*H*W*3 (fused on the numba backend);
-    ``kind`` "shaded" or "flat"."""
+    """The L1 image loss of :func:`render` against ``target`` (fused on the numba backend).
+
+    Args:
+        verts, faces, cams, raster, antialias, backend: as :func:`render`.
+        target: (B, H, W, 3) reference images (:func:`reference_images`).
+        kind: "shaded" or "flat".
+
+    Returns:
+        () scalar: the mean of |render - target| over B*H*W*3, differentiable w.r.t. ``verts``.
+    """
     kind = _check_shading(kind)
     verts, faces, raster, be = _prepare(verts, faces, cams, raster, backend)
     target = _check_target(target, raster)
@@ -119,8 +150,13 @@ def render_loss(verts: torch.Tensor, faces: torch.Tensor, cams, target: torch.Te
 def pixel_error(verts: torch.Tensor, faces: torch.Tensor, cams, target: torch.Tensor, *,
                 raster: Raster | None = None, antialias: bool = True, kind: str = "shaded",
                 backend: str = "auto") -> torch.Tensor:
-    """(B, H, W) per-pixel L1 error (sum over the 3 channels) of the ``kind`` render ("shaded"
-    or "flat"); no gradient."""
+    """Per-pixel L1 error of the ``kind`` render ("shaded" or "flat"); no gradient.
+
+    Args: as :func:`render_loss`.
+
+    Returns:
+        (B, H, W): |render - target| summed over the 3 channels.
+    """
     kind = _check_shading(kind)
     with torch.no_grad():
         verts, faces, raster, be = _prepare(verts.detach(), faces, cams, raster, backend)

@@ -49,10 +49,18 @@ class BakeResult:
 # ------------------------------------------------------------------------ nearest point
 def nearest_points(points: np.ndarray, reference: TriMesh, *,
                    workers: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Exact nearest surface point of ``reference`` for each point: (points (n,3), face, distance).
+    """Exact nearest surface point of ``reference`` for each point.
 
-    A BVH query (:mod:`core.spatial.closest`, built once per reference and cached); ``workers``: numba
-    threads for this call (default: the pool's setting, see ``core.runtime.threads.set_threads``).
+    A BVH query (:mod:`core.spatial.closest`, built once per reference and cached).
+
+    Args:
+        points: (n, 3) float query points.
+        reference: the surface.
+        workers: numba threads for this call (default: the pool's setting,
+            ``core.runtime.threads.set_threads``).
+
+    Returns:
+        (nearest points (n, 3) float64, their faces (n,) int64, distances (n,) float64).
     """
     from .closest import closest_point_index  # compiled kernels: imported on first use
 
@@ -121,9 +129,16 @@ def bake_displacements(origins: np.ndarray, directions: np.ndarray, reference: T
                        threads: int | None = None) -> BakeResult:
     """Displacements d with ``origins + directions·d`` on ``reference`` (see module doc).
 
-    ``max_distance`` (world units, scalar or (n,)) limits how far a ray hit may be; points
-    without a hit (or with a zero direction) use the nearest-point fallback. ``threads``:
-    Embree / nearest-point threads (default: the usable cores).
+    Args:
+        origins: (n, 3) float points.
+        directions: (n, 3) float directions (not necessarily unit).
+        reference: the surface to reach.
+        max_distance: world units, scalar or (n,): how far a ray hit may be; points without a
+            hit (or with a zero direction) use the nearest-point fallback.
+        threads: Embree / nearest-point threads (default: the usable cores).
+
+    Returns:
+        A :class:`BakeResult` (per point: the displacement, how it was found).
     """
     if not isinstance(reference, TriMesh):
         raise BakeError("reference must be a core.mesh.TriMesh")
