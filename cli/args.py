@@ -145,11 +145,19 @@ def base_overrides(args: argparse.Namespace) -> list[str]:
         out.append(f"base_max_error={args.base_error}")
     if args.base_method is not None:
         out.append(f"base_method={args.base_method}")
-    if args.symmetry and (args.base_method is None or
-                          builders.get(args.base_method).takes != builders.OBJECT):
+    return out
+
+
+def check_base_method(args: argparse.Namespace, settings) -> None:
+    """The settings' ``base_method`` (``--base-method`` or ``--set``) is a builder of the table,
+    and ``--symmetry`` is given only to a builder of the source object."""
+    try:
+        builder = builders.get(settings.base_method)
+    except ValueError as e:
+        raise BatchError(str(e)) from None
+    if args.symmetry and builder.takes != builders.OBJECT:
         objects = [b.key for b in builders.BUILDERS.values() if b.takes == builders.OBJECT]
         raise BatchError(f"--symmetry needs --base-method {' or '.join(objects)}")
-    return out
 
 
 def find_inputs(path: str | None) -> list[Path]:

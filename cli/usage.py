@@ -9,8 +9,8 @@ from ..core.io.output_set import OutputError, OutputSet, check_output_folder, ou
 from ..core.maps.atlas import AtlasError, checked_resolution
 from ..core.settings.overrides import apply_overrides
 from ..core.settings.fields import SettingsError, preset
-from .args import (DEMO_NAME, BatchError, base_overrides, budget_overrides, find_inputs,
-                   result_suffixes)
+from .args import (DEMO_NAME, BatchError, base_overrides, budget_overrides, check_base_method,
+                   find_inputs, result_suffixes)
 
 
 
@@ -24,6 +24,7 @@ def check_usage(args: argparse.Namespace):
         settings = apply_overrides(preset(args.preset), extra + args.overrides)
     except SettingsError as e:
         raise BatchError(str(e)) from None
+    check_base_method(args, settings)
     if args.level is not None and not 0 <= args.level <= 5:
         raise BatchError("--level must be within 0..5")
     if args.level is not None and args.method != "projection":

@@ -89,8 +89,8 @@ class MICROMESH_OT_make_base(bpy.types.Operator):
             else:
                 kw = dict(target_faces=s.target_faces) if s.decimate_mode == "TARGET" else \
                     dict(ratio=s.ratio if s.decimate_mode == "RATIO" else 1 / 32)
-                base, uv = builder.build(
-                    src, panel_settings(context.scene),
+                base, uv = builder.build(     # the panel's own target: no settings needed
+                    src, None,
                     symmetry=None if s.symmetry == "NONE" else s.symmetry,
                     vertex_group=s.vertex_group, vertex_group_factor=s.vertex_group_factor,
                     invert_vertex_group=s.invert_vertex_group, **kw)

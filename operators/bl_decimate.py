@@ -113,8 +113,9 @@ def decimate_base(source: bpy.types.Object, settings, reference_faces: int | Non
                   **options) -> tuple[TriMesh, np.ndarray | None]:
     """Blender's row of ``core.base.builders``: :func:`decimate_object_uvs` of ``source`` to
     the settings' target (``base_ratio``, ``base_faces`` of ``reference_faces`` triangles, at
-    least 4) unless ``options`` give ``target_faces`` or ``ratio``; ``options``: the other
-    arguments of :func:`decimate_object_uvs` (symmetry, vertex group)."""
+    least 4) unless ``options`` give ``target_faces`` or ``ratio`` (then ``settings`` may be
+    None); ``options``: the other arguments of :func:`decimate_object_uvs` (symmetry, vertex
+    group)."""
     if "target_faces" not in options and "ratio" not in options:
         from ..core.base import target_faces
 

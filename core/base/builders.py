@@ -1,13 +1,16 @@
-"""The table of base builders: the ways a base mesh is made from the source, chosen by the
-setting ``base_method`` (``batch.py --base-method``, the panel's Make Base). Trimesh's
-registries are the model: adding a builder is its module and one :func:`register` row.
+"""The table of base builders: the ways a base mesh is made from the source. The setting
+``base_method`` (``batch.py --base-method``) chooses the one a construction without a base
+uses; the panel's Make Base offers every row (its Method menu). Trimesh's registries are the
+model: adding a builder is its module and one :func:`register` row.
 
 A builder takes what its caller holds of the source. ``"arrays"``: the source as a
 :class:`~core.mesh.TriMesh` in world space; such a builder runs inside the construction, in
 any thread (``collapse``: the core's topology-keeping, error-bounded edge collapse). A row
 that takes ``"object"`` works on the source's Blender object: the glue implements it
 (:func:`implement`; Blender's Decimate modifier, ``operators/bl_decimate.py``) and runs it in
-Blender's main thread before the construction, which then gets its base.
+Blender's main thread (Make Base; ``batch.py``'s input before its construction). A
+construction asked for such a base without one refuses, saying so. The panel's Construct
+without a base builds with ``collapse``.
 """
 from __future__ import annotations
 

@@ -17,8 +17,8 @@ from typing import TYPE_CHECKING, Callable
 
 from .polygons import MeshFileError
 
-if TYPE_CHECKING:      # the readers import what they read with when they run: the table is
-    from ..mesh.trimesh import TriMesh             # read at batch.py's start, before heavy imports
+if TYPE_CHECKING:      # the readers import what they read with when they run
+    from ..mesh.trimesh import TriMesh
 
 BYTES_PER_TRIANGLE = 20      # the size rule for formats whose counts need Blender
 _HEADER_CHUNK = 1 << 16
@@ -41,8 +41,22 @@ class InputFormat:
 INPUTS: dict[str, InputFormat] = {}
 
 
+IMPORTERS = ("gltf", "fbx", "usd", "blend")      # Blender's, as operators/sources.py has them
+
+
 def register(fmt: InputFormat) -> InputFormat:
-    """Add ``fmt`` to the table (replacing a row of the same key)."""
+    """Add ``fmt`` to the table (replacing a row of the same key); ValueError for a row that
+    nothing would read or whose suffix another row has."""
+    if fmt.read is None and fmt.importer is None:
+        raise ValueError(f"input format {fmt.key!r}: a reader or Blender's importer is needed")
+    if fmt.importer is not None and fmt.importer not in IMPORTERS:
+        raise ValueError(f"input format {fmt.key!r}: Blender's importer is one of "
+                         f"{', '.join(IMPORTERS)}, not {fmt.importer!r}")
+    taken = {s: f.key for f in INPUTS.values() if f.key != fmt.key for s in f.suffixes}
+    clash = [s for s in fmt.suffixes if s in taken]
+    if clash:
+        raise ValueError(f"input format {fmt.key!r}: {', '.join(clash)} is "
+                         f"{taken[clash[0]]!r}'s")
     INPUTS[fmt.key] = fmt
     return fmt
 
@@ -61,17 +75,24 @@ def format_of(path: str | os.PathLike) -> InputFormat | None:
 def read_mesh(path: str | os.PathLike) -> "TriMesh":
     """``path`` as a triangle mesh by our own reader (``.ply`` ASCII or binary, ``.obj``,
     ``.stl`` ASCII or binary as the triangle soup it lists, a micro-mesh glTF as its
-    tessellation); :class:`MeshFileError` names what is wrong, or that Blender must read it."""
+    tessellation); :class:`MeshFileError` (a ValueError) names what is wrong, or that Blender
+    must read it."""
     path = Path(path)
     if not path.is_file():
         raise MeshFileError(f"{path}: no such file")
+    from .gltf import GltfError
+    from .micromesh_import import MicromeshFileError
+
     fmt = format_of(path)
-    mesh = fmt.read(path) if fmt is not None and fmt.read is not None else None
+    try:
+        mesh = fmt.read(path) if fmt is not None and fmt.read is not None else None
+    except (GltfError, MicromeshFileError) as e:
+        raise MeshFileError(str(e)) from None
     if mesh is None:
         ours = ", ".join(s for f in INPUTS.values() if f.read and not f.importer
                          for s in f.suffixes)
         raise MeshFileError(f"{path}: unsupported mesh format {path.suffix.lower()!r} "
-                            f"(use {ours})")
+                            f"(use {ours}, or a micro-mesh glTF)")
     return mesh
 
 

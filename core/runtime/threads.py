@@ -52,7 +52,8 @@ def pin_blas() -> None:
     environment (``OMP_NUM_THREADS``, which Ray sets to a task's CPUs), so the same input gave
     other bytes under Ray than in one process. The construction calls BLAS only on small
     arrays: one thread costs it nothing measurable (``tests/blender/test_determinism.py``).
-    Without threadpoolctl (an install from before it was pinned) they keep their own."""
+    Without threadpoolctl (an install from before it was pinned) they keep their own. The pin
+    is the process's: inside Blender it holds for the session, for numpy's other users too."""
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:

@@ -16,12 +16,12 @@ from .outcome import Outcome, jsonable
 @dataclass
 class Outputs:
     """What a job writes: ``formats`` (rows of ``core.io.formats``), ``export`` (the key of
-    the micro-mesh's one among them, or "none"), how the micro-mesh's values are stored
+    the micro-mesh's one among them, whose record goes to the metrics' "export"; "none"), how the micro-mesh's values are stored
     (``values``, ``layout``), the maps' resolution (``maps``, 0: none) and ``ply`` (the
     tessellation as PLY)."""
 
     formats: list = field(default_factory=list)
-    export: str = "gltf"
+    export: str = "none"
     values: str = "r11"
     layout: str = "bird"
     maps: int = 0
@@ -68,6 +68,7 @@ def write_files(outcome: Outcome, product: formats.Product, outputs: Outputs, ou
     if outputs.export != "none":
         m["export"] = records.pop(outputs.export)
     if product.maps is not None:
+        m.setdefault("maps", {})
         for record in records.values():
             m["maps"].update({k: v for k, v in record.items() if k != "bytes_by_file"})
         m["maps"]["bytes"] = {s: n for r in records.values() for s, n in r["bytes_by_file"].items()}

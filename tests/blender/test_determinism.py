@@ -1,6 +1,7 @@
 """The same bytes everywhere: one input of 20k faces at the fast preset (``time_limit_s=0``,
 so that no run stops early on a slower clock) gives the same ``.bary``, ``.bin`` and
-``.gltf`` with ``--threads`` 1, 2 and 4 (where there are more than 2 cores), in an environment that gives the BLAS library one
+``.gltf`` with ``--threads`` 1, 2 and 4 (where there are more than 2 cores; no more than the
+cores), in an environment that gives the BLAS library one
 thread (as Ray does for a task of one CPU: ``OMP_NUM_THREADS``) and on a Ray cluster.
 (``core.runtime.threads.pin_blas``: the BLAS reductions follow their thread count.)"""
 from __future__ import annotations

@@ -33,6 +33,13 @@ def test_a_mesh_we_read_is_what_blender_reads_back(tmp_path, offset):
     assert np.abs(mesh.vertices - v).max() <= 1e-6 * np.ptp(v, axis=0).max()
 
 
+def test_every_importer_the_table_names_is_here():
+    from micromesh.core.io import inputs
+
+    assert set(sources._IMPORTERS) == set(inputs.IMPORTERS)
+    assert {f.importer for f in inputs.INPUTS.values()} - {None} <= set(sources._IMPORTERS)
+
+
 def test_a_file_blender_reads_is_read_back(tmp_path):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     path = tmp_path / "cube.blend"

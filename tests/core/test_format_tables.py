@@ -4,7 +4,6 @@ tables (``batch.py``'s options and inputs, a result's output set, the workflow's
 the Ray memory estimate), and leave again."""
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +19,7 @@ from micromesh.core.io.inputs import InputFormat, count_triangles, read_mesh  # 
 from micromesh.core.io.output_set import OutputSet  # noqa: E402
 from micromesh.core.mesh.trimesh import TriMesh  # noqa: E402
 from micromesh.core.micro.micromesh import MicroMesh  # noqa: E402
-from micromesh.core.workflow import Outputs, write_formats  # noqa: E402
+from micromesh.core.workflow import write_formats  # noqa: E402
 
 
 def _write_tiny(product: formats.Product, name: str):
@@ -71,7 +70,6 @@ def test_a_registered_output_format_reaches_the_options_the_set_and_the_writer(t
         out.commit()
     assert (tmp_path / "out" / "quad.tiny.txt").read_text() == f"{mm.n_vertices}\n"
     assert records["tiny"]["micro_vertices"] == mm.n_vertices == 9
-    assert Outputs(cli_args.result_formats(args), "tiny").formats[0].key == "tiny"
 
 
 def test_a_registered_input_format_is_found_read_and_counted(tiny, tmp_path):
@@ -124,3 +122,22 @@ def test_a_registered_base_builder_is_an_option_and_builds_the_base(tmp_path):
         del builders.BUILDERS["coarse"]
     with pytest.raises(SystemExit):
         cli_args.parse_args(["--base-method", "coarse"])
+
+
+def test_the_base_method_is_checked_before_work(tmp_path):
+    """``--set base_method=…`` is checked against the table before any work, and
+    ``--symmetry`` follows the resulting setting, however it was given."""
+    out = ["--output", str(tmp_path / "out")]
+    with pytest.raises(cli_args.BatchError, match="unknown base method 'Blender'"):
+        check_usage(cli_args.parse_args(["--set", "base_method=Blender", *out]))
+    settings, _, _ = check_usage(cli_args.parse_args(
+        ["--set", "base_method=blender", "--symmetry", "X", *out]))
+    assert settings.base_method == "blender"
+    with pytest.raises(cli_args.BatchError, match="--symmetry needs --base-method blender"):
+        check_usage(cli_args.parse_args(["--base-method", "blender", "--set",
+                                         "base_method=collapse", "--symmetry", "X", *out]))
+    with pytest.raises(ValueError, match="a reader or Blender's importer"):
+        inputs.register(InputFormat("nothing", (".nothing",)))
+    with pytest.raises(ValueError, match="'ply'"):
+        inputs.register(InputFormat("ply2", (".ply",), _read_tri))
+    assert "nothing" not in inputs.INPUTS and "ply2" not in inputs.INPUTS
