@@ -16,6 +16,7 @@ from ..core.io.micromesh_export import Y_UP, ExportError
 from ..core.io.micromesh_import import MicromeshFileError, read_micromesh
 from ..core.io.output_set import OutputSet
 from ..core.micro.metrics import mmt_formula_bytes
+from ..core.workflow import write_formats
 from ..core.workflow.outcome import Outcome
 from . import base_ops, bl_mesh, writeback
 from .maps_object import maps_of
@@ -111,17 +112,16 @@ class MICROMESH_OT_export(bpy.types.Operator, ExportHelper):
 
 
 def _write(chosen: list, product: formats.Product, folder: Path, name: str) -> dict:
-    """The ``chosen`` formats' files in ``folder`` as one set (each under a temporary name
-    first, then all renamed; none left where one fails); {file name: bytes}."""
-    every = [(f, formats.write(f, product, name)[0]) for f in chosen]
-    suffixes = [s for _, files in every for s in files]
-    out = OutputSet(folder, name, suffixes[::-1])      # the first format's main file last
+    """The ``chosen`` formats' files in ``folder`` as one set (``core.workflow.write_formats``,
+    each under a temporary name first, then all renamed; none left where one fails);
+    {file name: bytes}."""
+    suffixes = [s for f in chosen for s in f.suffixes]
+    out = OutputSet(folder, name, suffixes[::-1],      # the first format's main file last
+                    [s for f in chosen for s in f.optional])
     with out:
-        for _, files in every:
-            for suffix, data in files.items():
-                out.temp(suffix).write_bytes(data)
+        records = write_formats(chosen, product, out)
         out.commit()
-    return {f"{name}{s}": len(d) for _, files in every for s, d in files.items()}
+    return {f"{name}{s}": n for r in records.values() for s, n in r["bytes_by_file"].items()}
 
 
 class MICROMESH_OT_import(bpy.types.Operator, ImportHelper):
