@@ -36,18 +36,32 @@ def spatial_order(points: np.ndarray) -> np.ndarray:
     return np.argsort(code, kind="stable")
 
 
-def triangle_groups(order: np.ndarray, ptr: np.ndarray, size: int = GROUP) -> list:
-    """Groups of at most about ``size`` triangles, whole faces each: the faces in ``order``
-    (a spatial order: each group a compact region), ``ptr`` (nf + 1,) the faces' triangle
-    ranges (a micro-mesh topology's ``face_triangle_ptr``). Returns int32 index arrays
-    (int64 past 2³¹ triangles)."""
-    counts = np.diff(ptr)[order]
-    cuts = np.searchsorted(np.cumsum(counts), np.arange(size, counts.sum(), size), "right")
-    out, kind = [], np.int32 if ptr[-1] < 2 ** 31 else np.int64
-    for faces in np.split(order, cuts):
-        if len(faces):
-            out.append(np.concatenate([np.arange(ptr[f], ptr[f + 1], dtype=kind)
-                                       for f in faces]))
+def triangle_groups(centroids: np.ndarray, ptr: np.ndarray, size: int = GROUP) -> list:
+    """Groups of about ``size`` triangles at most, whole faces each, over compact boxes: the
+    faces (``centroids`` (nf, 3); ``ptr`` (nf + 1,) their triangle ranges, a
+    micro-mesh topology's ``face_triangle_ptr``) cut across the longest side of their box,
+    the triangles shared out between the two sides' shares of the groups to be, until each
+    part holds ``size`` or fewer: as many groups as runs of ``size`` would make. (Runs of a
+    Morton order gave boxes that spanned distant parts of an assembly.) Returns int32 index
+    arrays (int64 past 2³¹ triangles)."""
+    counts = np.diff(ptr)
+    kind = np.int32 if ptr[-1] < 2 ** 31 else np.int64
+    out, todo = [], [np.arange(len(counts))]
+    while todo:
+        faces = todo.pop()
+        total = int(counts[faces].sum())
+        parts = -(-total // size)               # as many groups as runs of ``size`` make
+        if parts <= 1 or len(faces) == 1:
+            if len(faces):
+                out.append(np.concatenate([np.arange(ptr[f], ptr[f + 1], dtype=kind)
+                                           for f in faces]))
+            continue
+        c = centroids[faces]
+        axis = int(np.argmax(np.ptp(c, 0)))
+        order = faces[np.argsort(c[:, axis], kind="stable")]
+        cut = np.searchsorted(np.cumsum(counts[order]), total * (parts // 2) / parts)
+        cut = min(max(int(cut), 1), len(order) - 1)
+        todo += [order[cut:], order[:cut]]
     return out
 
 
@@ -66,22 +80,25 @@ class GroupedMatches:
         self.X, self.T, self.groups, self.samples, self.chunk = X, T, groups, samples, chunk
         self.bound = bound
         self.distance = None
+        self.triangle = None
 
     def __iter__(self) -> Iterator[tuple]:
         X, T = self.X, self.T
         if len(self.groups) == 1:
             index = ClosestPointIndex(X, T[self.groups[0]])
             self.distance = np.empty(len(self.samples), np.float32)
+            self.triangle = np.full(len(self.samples), -1, self.groups[0].dtype)
             for part, pts, normals, weights in self.samples.chunks(self.chunk):
                 cp, f, d = index.query(pts, max_distance=self._reach(part))
                 ok = np.flatnonzero(f >= 0)
                 self.distance[part] = np.minimum(d, self._reach(part))    # (inf: none)
                 t = self.groups[0][f[ok]].astype(np.int64)
+                self.triangle[part.start + ok] = t
                 corners = np.ascontiguousarray(T[t], dtype=np.int64)
                 yield (pts[ok], normals[ok], weights[ok], t, corners,
                        barycentrics(cp[ok], X[corners]))
             return
-        tri = self._nearest()
+        tri = self.triangle = self._nearest()
         for part, pts, normals, weights in self.samples.chunks(self.chunk):
             t = tri[part]
             ok = np.flatnonzero(t >= 0)
@@ -104,23 +121,31 @@ class GroupedMatches:
         runs = list(samples.parts(self.chunk))
         boxes = [(c.min((0, 1)), c.max((0, 1))) for c in
                  (ref.vertices[ref.faces[f]] for _, _, f in runs)]
+        # each run's points made once, in float32 (12 bytes a sample), to find the samples
+        # near a group; those are asked for in float64, as made
+        points = [None] * len(runs)
         for group in self.groups:
             corners = X[T[group]]
             lo, hi = corners.min((0, 1)), corners.max((0, 1))
             del corners
             index = None
-            for (part, lv, f), (rlo, rhi) in zip(runs, boxes):
+            for k, ((part, lv, f), (rlo, rhi)) in enumerate(zip(runs, boxes)):
                 reach = best[part].max()
                 if (rlo > hi + reach).any() or (rhi < lo - reach).any():
                     continue
-                pts = samples.points(lv, f)
-                r = best[part][:, None]
-                near = np.flatnonzero(((pts >= lo - r) & (pts <= hi + r)).all(1))
+                if points[k] is None:
+                    points[k] = samples.points(lv, f).astype(np.float32)
+                # widened by float32's rounding at the box's scale
+                r = best[part][:, None] + np.float32(
+                    1e-6 * max(1.0, float(np.abs([lo, hi]).max()) + float(reach)))
+                near = np.flatnonzero(((points[k] >= (lo - r).astype(np.float32))
+                                       & (points[k] <= (hi + r).astype(np.float32))).all(1))
                 if not len(near):
                     continue
                 if index is None:
                     index = ClosestPointIndex(X, T[group])
-                _, fi, d = index.query(pts[near], max_distance=best[part][near])
+                _, fi, d = index.query(samples.points_at(lv, f, near),
+                                       max_distance=best[part][near])
                 closer = d < best[part][near]
                 at = part.start + near[closer]
                 best[at], tri[at] = d[closer], group[fi[closer]]

@@ -87,6 +87,13 @@ class Samples:
         pts = np.einsum("sk,fkc->fsc", w, self.reference.vertices[self.reference.faces[faces]])
         return pts.reshape(-1, 3)
 
+    def points_at(self, level: int, faces: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """(r, 3) the samples ``rows`` (indices into :meth:`points` of ``faces``) alone: the
+        same values, computed for those only."""
+        w = _subtriangle_centroids(level)[rows % 4 ** level]
+        v = self.reference.vertices[self.reference.faces[faces[rows // 4 ** level]]]
+        return np.einsum("sk,skc->sc", w, v)
+
     def chunks(self, size: int = CHUNK):
         """(slice of the samples, points (c, 3), normals (c, 3), weights (c,)) in order, about
         ``size`` samples each (whole faces of one level)."""

@@ -91,12 +91,23 @@ class BlockOperator:
         return self.hold + sum(np.bincount(self.T[:, k], self.G[:, k, k], minlength=n)
                                for k in range(3))
 
-    def __matmul__(self, v: np.ndarray, chunk: int = 1 << 18) -> np.ndarray:
-        """M v for v (n,) (``chunk`` triangles at a time: their temporaries 120 bytes each)."""
+    def __matmul__(self, v: np.ndarray) -> np.ndarray:
+        """M v for v (n,)."""
         out = self.hold * v
-        for s in range(0, len(self.T), chunk):
-            T = self.T[s:s + chunk]
-            G = self.G[s:s + chunk].astype(np.float64, copy=False)   # (einsum mixing is slow)
-            y = np.einsum("mij,mj->mi", G, v[T])
-            out += np.bincount(T.reshape(-1), y.reshape(-1), minlength=len(v))
+        apply_blocks(self.G, self.T, f64(v), out)
         return out
+
+
+@kernel(cache=True)
+def apply_blocks(G, T, v, out):  # pragma: no cover
+    """out += Σ_t G_t v[T_t] at T_t, triangle by triangle in order (one thread: the sums do
+    not depend on the thread count), in float64 from ``G``'s float32."""
+    for t in range(T.shape[0]):
+        a, b, c = T[t, 0], T[t, 1], T[t, 2]
+        va, vb, vc = v[a], v[b], v[c]
+        out[a] += np.float64(G[t, 0, 0]) * va + np.float64(G[t, 0, 1]) * vb \
+            + np.float64(G[t, 0, 2]) * vc
+        out[b] += np.float64(G[t, 1, 0]) * va + np.float64(G[t, 1, 1]) * vb \
+            + np.float64(G[t, 1, 2]) * vc
+        out[c] += np.float64(G[t, 2, 0]) * va + np.float64(G[t, 2, 1]) * vb \
+            + np.float64(G[t, 2, 2]) * vc

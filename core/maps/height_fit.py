@@ -29,20 +29,24 @@ import scipy.sparse as sp
 from scipy import ndimage
 
 from ..spatial.bake import bake_displacements
-from ..spatial.closest import ClosestPointIndex
 from ..fit.grouped import GroupedMatches, spatial_order
-from ..fit.samples import Samples, reference_samples
+from ..fit.samples import Samples
 from ..fit.system import displacement_blocks
 from ..mesh.trimesh import TriMesh
 from ..micro.micromesh import MicroMesh
 from ..mesh.normalization import unit_sphere_normalization
 from .atlas import Atlas, check_room, checked_resolution, texel_faces
 from .bake import MapsCancelled, base_point, unit_directions
-from .lattice import DrawnSurface, Lattice
+from .lattice import DrawnSurface, Lattice, moved_bound, reference_bounds
 from .seams import seam_gap_max, seam_points
 from .texel_solve import closed, pcg
 from .texels import Membrane, TexelGrid, bilinear_taps
 
+# The texels are solved to this RMS height (the unit sphere's radius 1), where that is reached
+# before the relative residual (texel_solve.RTOL): below float32's resolution of the drawn
+# positions (6e-8). It stops the solve on a base that already draws the source (heights of
+# 1e-6: gen_genus11_27k took 125 steps, 17 s, for heights of 1e-11), and leaves the others'.
+HEIGHT_TOL = 1e-8
 # The membrane's and the seams' weights, as fractions of the median micro-vertex's hold by
 # its samples (the diagonal of the fit's system).
 MEMBRANE = 1e-3
@@ -55,7 +59,10 @@ CHUNK = 1 << 18
 LEVEL = 4
 # Reference samples per lattice triangle, at least (``core.fit.samples`` rounds a face's up
 # to a power of 4): 2 gained 0.08 dB on bunny_69k for 1.5 times the samples, and took the
-# 871k scan's stage to 4.1 GB (docs/heightmaps.md).
+# 871k scan's stage to 4.1 GB (docs/heightmaps.md). Half as many where the map has fewer
+# texels than a quarter of the lattice's triangles: the texels then limit what it draws
+# (gen_parts86 at 2048², 0.2 texels a triangle: 31.11 dB against 31.12, the fit 100 s
+# against 145 s; the flight helmet, 0.38, lost 0.08 dB at half).
 DENSITY = 1.0
 
 
@@ -111,7 +118,9 @@ def fit_height_map(mm: MicroMesh, reference: TriMesh, atlas: Atlas, resolution: 
     texels = _Texels.set_up(lattice, uv, base, U, ref, atlas, res, seam_level)
     del uv
     d = texels.SB @ texels.x
-    samples, bound = _samples(lattice, base, ref, d)
+    starved = texels.grid.n < len(lattice.triangles) / 4
+    samples, bound = reference_bounds(lattice, base, ref, d,
+                                      DENSITY / 2 if starved else DENSITY)
     groups = lattice.groups(base)
     length = np.linalg.norm(lattice.D, axis=1)
     iterations = []
@@ -119,10 +128,13 @@ def fit_height_map(mm: MicroMesh, reference: TriMesh, atlas: Atlas, resolution: 
         if should_stop():
             raise MapsCancelled("height map cancelled")
         progress({"phase": "height map", "iteration": r + 1, "total": rounds + 2})
-        steps, dist = texels.solve(lattice, d, groups, samples, bound, slopes, should_stop)
+        steps, dist, tri = texels.solve(lattice, d, groups, samples, bound, slopes,
+                                        should_stop)
         iterations.append(steps)
-        moved = texels.SB @ texels.x          # the next bound: as near, but for the move
-        bound = dist * np.float32(1 + 1e-6) + np.float32(np.abs((moved - d) * length).max())
+        moved = texels.SB @ texels.x
+        bound = moved_bound(dist, tri, lattice.triangles,
+                             np.abs((moved - d) * length).astype(np.float32))
+        del tri
         d = moved
     progress({"phase": "height map", "iteration": rounds + 1, "total": rounds + 2})
     x = closed(texels.C, texels.x)
@@ -131,6 +143,7 @@ def fit_height_map(mm: MicroMesh, reference: TriMesh, atlas: Atlas, resolution: 
     notes = {"level": int(level), "resolution": res, "rounds": int(rounds),
              "cg_iterations": iterations, "texels_solved": int(texels.grid.n),
              "lattice_points": int(lattice.n_vertices), "texels_per_face": texels_per_face,
+             "samples": len(samples),
              "seam_edges": texels.seam_edges,
              "seam_gap_max": {str(k): v / mm.base.bbox_diagonal for k, v in gaps.items()},
              "time_s": time.perf_counter() - began}
@@ -185,7 +198,7 @@ class _Texels:
         T = lattice.triangles
         matches = GroupedMatches(X, T, groups, samples, bound)
         M, b = displacement_blocks(matches, T, lattice.P, lattice.D, d, slopes)
-        dist = matches.distance
+        dist, tri = matches.distance, matches.triangle
         del X, matches
         hold = float(np.median(M.diagonal()))
         tied, seam = MEMBRANE * hold, SEAM * hold
@@ -194,30 +207,10 @@ class _Texels:
         diag = squares.T @ M.diagonal() + tied * membrane.diagonal() \
             + seam * CtC.diagonal()
         del squares
+        floor = HEIGHT_TOL * float(np.median(diag)) * np.sqrt(len(diag))   # r ≈ diag·e
         self.x, steps = pcg(lambda v: SB.T @ (M @ (SB @ v)) + tied * (membrane @ v)
-                             + seam * (CtC @ v), SB.T @ b, self.x, diag, should_stop)
-        return steps, dist
-
-
-def _samples(lattice: Lattice, base: TriMesh, ref: TriMesh, d: np.ndarray
-             ) -> tuple[Samples, np.ndarray]:
-    """The reference's samples, at least :data:`DENSITY` per micro-triangle of the lattice
-    displaced by ``d`` (``core.fit.samples``), and a distance within which the lattice has a point for
-    each: its distance to the base plus the largest height (float32)."""
-    X = lattice.P + lattice.D * d[:, None]
-    area = 0.0
-    for s in range(0, len(lattice.triangles), CHUNK):
-        c = X[lattice.triangles[s:s + CHUNK]]
-        area += 0.5 * np.linalg.norm(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]),
-                                     axis=1).sum()
-    samples = reference_samples(ref, area / (DENSITY * len(lattice.triangles)))
-    top = float(np.linalg.norm(X - lattice.P, axis=1).max())
-    del X
-    index = ClosestPointIndex(base.vertices, base.faces)
-    bound = np.empty(len(samples), np.float32)
-    for part, pts, _, _ in samples.chunks():
-        bound[part] = (index.query(pts)[2] + top) * (1 + 1e-6)
-    return samples, bound
+                             + seam * (CtC @ v), SB.T @ b, self.x, diag, should_stop, floor)
+        return steps, dist, tri
 
 
 def _bake(base: TriMesh, U: np.ndarray, ref: TriMesh, face: np.ndarray, bary: np.ndarray,

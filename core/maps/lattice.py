@@ -5,7 +5,10 @@ normals interpolated, not normalised).
 
 A micro-mesh's topology of millions of micro-vertices holds more than this (160 bytes a
 micro-vertex on gen_scan_871k's lattice, where this keeps 100): the fit keeps these arrays
-and draws its result as a :class:`DrawnSurface`, with no topology.
+and draws its result as a :class:`DrawnSurface`, with no topology. The reference's samples
+come with a distance within which the lattice has a triangle for each, as the lattice moves
+round after round (:func:`reference_bounds`, :func:`moved_bound`): the grouped search
+(``core.fit.grouped``) asks only the trees within it.
 """
 from __future__ import annotations
 
@@ -13,11 +16,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..fit.grouped import GROUP, spatial_order, triangle_groups
+from ..fit.grouped import GROUP, triangle_groups
+from ..fit.samples import Samples, reference_samples
 from ..mesh.trimesh import TriMesh
 from ..micro.locate import grid_cell
 from ..micro.micromesh import MicroMesh
+from ..spatial.closest import ClosestPointIndex
 from .atlas import Atlas
+
+CHUNK = 1 << 18             # lattice triangles measured at a time (temporaries: 72 bytes each)
 
 
 @dataclass(eq=False)
@@ -49,10 +56,10 @@ class Lattice:
         return len(self.P)
 
     def groups(self, base: TriMesh, size: int = GROUP) -> list:
-        """The triangles in groups of about ``size`` over compact regions of ``base`` (its
-        faces in the Morton order of their centroids), for :mod:`core.fit.grouped`."""
-        order = spatial_order(base.vertices[base.faces].mean(1))
-        return triangle_groups(order, self.face_triangle_ptr, size)
+        """The triangles in groups of at most ``size`` over compact regions of ``base``, for
+        :mod:`core.fit.grouped`."""
+        return triangle_groups(base.vertices[base.faces].mean(1), self.face_triangle_ptr,
+                               size)
 
     def drawn(self, X: np.ndarray) -> "DrawnSurface":
         """The lattice's micro-vertices at ``X`` (n, 3)."""
@@ -75,3 +82,39 @@ class DrawnSurface:
         of base ``faces`` (q,) and barycentrics ``bary`` (q, 3), as ``MicroMesh.locate``."""
         loc, w = grid_cell(self.level, bary)
         return self.face_vertices[np.asarray(faces)[:, None], loc], w
+
+
+def moved_bound(dist: np.ndarray, tri: np.ndarray, triangles: np.ndarray,
+                 move: np.ndarray) -> np.ndarray:
+    """(s,) float32 a distance within which each sample has a triangle of the lattice after
+    its micro-vertices moved by ``move`` (n,): its distance ``dist`` to its triangle ``tri``
+    before, plus the most that triangle's corners moved (the largest move anywhere where it
+    had none)."""
+    bound = dist.copy()
+    ok = tri >= 0
+    bound[ok] += move[triangles[tri[ok]]].max(1)
+    bound[~ok] += move.max()
+    return bound * np.float32(1 + 1e-6)
+
+
+def reference_bounds(lattice: Lattice, base: TriMesh, ref: TriMesh, d: np.ndarray, density: float
+             ) -> tuple[Samples, np.ndarray]:
+    """The reference's samples, at least ``density`` per micro-triangle of the lattice
+    displaced by ``d`` (``core.fit.samples``), and a distance within which the lattice has a
+    point for each (float32): its distance to its nearest base face plus the largest height
+    over that face (the lattice triangle over its nearest point is within that height)."""
+    X = lattice.P + lattice.D * d[:, None]
+    area = 0.0
+    for s in range(0, len(lattice.triangles), CHUNK):
+        c = X[lattice.triangles[s:s + CHUNK]]
+        area += 0.5 * np.linalg.norm(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]),
+                                     axis=1).sum()
+    samples = reference_samples(ref, area / (density * len(lattice.triangles)))
+    top = np.linalg.norm(X - lattice.P, axis=1)[lattice.face_vertices].max(1)
+    del X
+    index = ClosestPointIndex(base.vertices, base.faces)
+    bound = np.empty(len(samples), np.float32)
+    for part, pts, _, _ in samples.chunks():
+        _, face, dist = index.query(pts)
+        bound[part] = (dist + top[face]) * (1 + 1e-6)
+    return samples, bound

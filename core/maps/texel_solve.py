@@ -17,16 +17,18 @@ MAX_CG = 400
 
 
 def pcg(A: Callable[[np.ndarray], np.ndarray], b: np.ndarray, x: np.ndarray,
-         diag: np.ndarray, should_stop: Callable[[], bool]) -> tuple[np.ndarray, int]:
+         diag: np.ndarray, should_stop: Callable[[], bool], floor: float = 0.0
+         ) -> tuple[np.ndarray, int]:
     """Jacobi-preconditioned conjugate gradients from ``x`` to a residual of :data:`RTOL`
-    of ``b``'s (at most :data:`MAX_CG` steps); (x, steps)."""
+    of ``b``'s, or of ``floor`` where that is larger (at most :data:`MAX_CG` steps);
+    (x, steps)."""
     inv = np.where(diag > 0, 1.0 / np.where(diag > 0, diag, 1.0), 0.0)
     x = x.copy()
     r = b - A(x)
     z = inv * r
     p = z.copy()
     rz = float(r @ z)
-    stop = RTOL * float(np.linalg.norm(b))
+    stop = max(RTOL * float(np.linalg.norm(b)), floor)
     for k in range(MAX_CG):
         if float(np.linalg.norm(r)) <= stop:
             return x, k

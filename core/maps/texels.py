@@ -12,6 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from ..runtime.jit import kernel
+
 
 def bilinear_taps(uv: np.ndarray, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
     """The four texels a bilinear lookup at each ``uv`` reads and their weights.
@@ -105,10 +107,20 @@ class Membrane:
     n: int
 
     def __matmul__(self, v: np.ndarray) -> np.ndarray:
-        i, j = self.pairs[:, 0], self.pairs[:, 1]
-        step = v[i] - v[j]
-        return (np.bincount(i, step, minlength=self.n)
-                - np.bincount(j, step, minlength=self.n))
+        out = np.zeros(self.n)
+        _apply_pairs(self.pairs, np.ascontiguousarray(v, dtype=np.float64), out)
+        return out
 
     def diagonal(self) -> np.ndarray:
         return np.bincount(self.pairs.reshape(-1), minlength=self.n).astype(np.float64)
+
+
+@kernel(cache=True)
+def _apply_pairs(pairs, v, out):
+    """out += GᵀG v: (v_i − v_j) added at i and taken at j, pair by pair, in order (one
+    thread: the sums do not depend on the thread count)."""
+    for k in range(pairs.shape[0]):
+        i, j = pairs[k, 0], pairs[k, 1]
+        s = v[i] - v[j]
+        out[i] += s
+        out[j] -= s

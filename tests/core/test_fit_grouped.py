@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.fit.grouped import GroupedMatches, spatial_order, triangle_groups
+from core.fit.grouped import GroupedMatches, triangle_groups
 from core.fit.samples import reference_samples
 from core.fit.system import displacement_blocks, normal_equations, sample_matches
 from core.mesh.trimesh import TriMesh
@@ -26,8 +26,8 @@ def case():
 
 def _groups(mm: MicroMesh, size: int) -> list:
     base = mm.base
-    return triangle_groups(spatial_order(base.vertices[base.faces].mean(1)),
-                           mm.topology.face_triangle_ptr, size)
+    return triangle_groups(base.vertices[base.faces].mean(1), mm.topology.face_triangle_ptr,
+                           size)
 
 
 def test_matches_over_groups_are_one_trees(case):
@@ -47,8 +47,10 @@ def test_matches_over_groups_are_one_trees(case):
         return np.concatenate([np.einsum("sk,skc->sc", B, X[c])
                                for _, _, _, _, c, B in matches])
     near_one, near_many = closest(one), closest(many)
-    assert np.allclose(near_one, near_many, atol=1e-12)       # the same points (ties aside)
-    dist = np.linalg.norm(pts - near_many, axis=1)
+    other = np.abs(near_one - near_many).max(1) > 1e-12
+    assert other.sum() <= 1e-3 * len(pts)               # the same points, but for ties:
+    dist = np.linalg.norm(pts - near_many, axis=1)      # equally near at float32's precision
+    assert np.allclose(dist[other], np.linalg.norm(pts - near_one, axis=1)[other], rtol=1e-7)
     assert np.allclose(grouped.distance, dist, rtol=1e-6, atol=1e-9)
     # a bound below a sample's distance leaves it out, rather than matching it far off
     tight = GroupedMatches(X, T, groups, samples, np.float32(0.5) * grouped.distance)

@@ -174,3 +174,17 @@ def test_a_vertex_where_two_fans_meet_lands_in_one_place():
     at0 = atlas.uv[atlas.vertex == 0]
     h = sample(hm.height.astype(np.float64), at0)
     assert abs(h[0] - h[1]) < 1e-7 and abs(h[0] - 0.015) < 0.02, h
+
+
+def test_a_map_with_few_texels_for_its_lattice_takes_half_the_samples(case, monkeypatch):
+    import core.maps.height_fit as hf
+    ref, mm, _ = case
+    asked = []
+    original = hf.reference_bounds
+    monkeypatch.setattr(hf, "reference_bounds", lambda *a: asked.append(a[-1]) or original(*a))
+    rich = fit_height_map(mm, ref, uv_atlas(mm.base, RES), RES, level=3, rounds=1)
+    starved = fit_height_map(mm, ref, uv_atlas(mm.base, 64), 64, level=4, rounds=1)
+    assert rich.notes["texels_solved"] >= 64 * mm.base.n_faces / 4     # level 3: 64 a face
+    assert starved.notes["texels_solved"] < 256 * mm.base.n_faces / 4  # level 4: 256 a face
+    assert asked == [hf.DENSITY, hf.DENSITY / 2]
+    assert starved.notes["samples"] < rich.notes["samples"] * 4 / 2
