@@ -12,9 +12,16 @@ minus that of our float tessellation (``--ply``): what the 11-bit file loses. ``
 (``--method projection``, level 3 uniform, on the same default base) as the simplest
 alternative.
 
+``--meshreduce PATH`` (or ``$MICROMESH_MESHREDUCE``) runs micromesh-tools itself in the same run,
+right after ours on each mesh: its ``meshreduce`` (built as ``docs/micromesh-tools.md`` says) on
+the mesh written as OBJ, with ``../shared/baselines/cmds.txt``, as that folder's README ran it.
+Its wall time then stands beside ours (``time_mmt``, ``time_x``: ours over its), and its files
+are the ones judged. Without it, ``time_mmt`` is the wall time recorded with the shared
+baselines (``run.json``, another day's machine: ``time_src`` says which).
+
     python bench/construct_bench.py [--meshes NAME ...] [--generated [NAME ...]]
-        [--set key=value ...] [--staged] [--baselines DIR] [--judge-python PATH] [--out DIR]
-        [--json FILE]
+        [--set key=value ...] [--staged] [--baselines DIR] [--meshreduce PATH]
+        [--judge-python PATH] [--out DIR] [--json FILE]
 
 ``--generated`` runs the meshes ``bench/generated_meshes.py`` makes (high genus, many parts,
 a 871k-face scan-like surface and the same surface without its noise), judged against
@@ -30,6 +37,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -39,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from _common import MESHES, ROOT, parser, print_table, write_json
+from core.io.ply import read_ply
 from generated_meshes import GENERATED, write as write_generated
 
 SHARED = MESHES.parent
@@ -69,16 +78,42 @@ def run_batch(mesh: Path, out: Path, overrides: list[str], extra: list[str]) -> 
     return json.loads((out / f"{mesh.stem}.metrics.json").read_text())["metrics"], wall
 
 
+def run_meshreduce(exe: Path, mesh: Path, out: Path) -> dict:
+    """micromesh-tools' ``meshreduce`` on ``mesh`` in ``out`` (its ``out_NAME.*`` written
+    there): the mesh as OBJ with float32-exact vertices and the faces as they are, the shared
+    baselines' commands; {"wall_s", "peak_rss_mb"} of the process (loading, every command,
+    its statistics and writing, as ``run.json`` of the shared baselines measured them)."""
+    name = mesh.stem
+    v, f = read_ply(mesh)
+    with open(out / f"{name}.obj", "w") as fh:   # its reader stops at a blank line: none
+        fh.writelines(f"v {a:.9g} {b:.9g} {c:.9g}\n" for a, b, c in v.astype(np.float32))
+        fh.writelines(f"f {a} {b} {c}\n" for a, b, c in f + 1)
+    shutil.copyfile(BASELINES / "cmds.txt", out / "cmds.txt")
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([str(exe), f"{name}.obj", "cmds.txt", "out_"], cwd=out,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    log = proc.stdout.read()
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    (out / "meshreduce.log").write_bytes(log)
+    if os.waitstatus_to_exitcode(status) != 0 or not (out / f"out_{name}.gltf").exists():
+        raise RuntimeError(f"meshreduce failed on {mesh.name}: {log[-2000:].decode(errors='replace')}")
+    return {"wall_s": round(wall, 2), "peak_rss_mb": round(usage.ru_maxrss / 1024, 1)}
+
+
 def theirs(name: str, mesh: Path, python: str, cache: Path, baselines: list[Path]) -> dict | None:
     """The judge's figures for micromesh-tools' file (the first of ``baselines`` that has
-    ``NAME/out_NAME.gltf``), or None where none has it."""
+    ``NAME/out_NAME.gltf``), or None where none has it; with its wall time where that folder
+    records one (``run.json``)."""
     path = next((p for p in (b / name / f"out_{name}.gltf" for b in baselines) if p.exists()),
                 None)
     if path is None:
         return None
     tag = zlib.crc32(str(path.resolve()).encode())          # one cache per baselines folder
     j = judge(python, mesh, path, cache / f"theirs_{name}_{tag:08x}.json")
-    return {"psnr": j["render"]["psnr_full"], "geom_err": j["geom_error"]["ref_to_mm"]["avg"],
+    run = path.parent / "run.json"
+    return {"wall_s": json.loads(run.read_text()).get("wall_s") if run.exists() else None,
+            "psnr": j["render"]["psnr_full"], "geom_err": j["geom_error"]["ref_to_mm"]["avg"],
             "shell": j["shell"]["shell_volume_tight"], "bytes": j["storage"]["mmt_formula_bytes"],
             "disk": j["storage"]["disk_bytes_bin_bary"],
             "iso_base": j["isotropy"]["iso_base"], "cracks": j["watertightness"]["crack_edges"],
@@ -117,6 +152,10 @@ def main() -> None:
     p.add_argument("--baselines", type=Path, default=None, metavar="DIR",
                    help="micromesh-tools' outputs (DIR/NAME/out_NAME.gltf) besides those of "
                         "../shared/baselines, looked up first")
+    p.add_argument("--meshreduce", type=Path,
+                   default=os.environ.get("MICROMESH_MESHREDUCE") or None, metavar="PATH",
+                   help="micromesh-tools' meshreduce: run it beside ours, in the same run "
+                        "(docs/micromesh-tools.md builds it)")
     p.add_argument("--judge-python", default=os.environ.get("MICROMESH_JUDGE_PYTHON",
                                                             str(SHARED / "judge" / "venv" / "bin" / "python")))
     p.add_argument("--out", default="/tmp/micromesh_construct_bench")
@@ -125,6 +164,9 @@ def main() -> None:
     if shared and (not MESHES.exists() or not BASELINES.exists()):
         sys.exit(f"skip: {MESHES} or {BASELINES} not found")
     names = (args.meshes or sorted(f.stem for f in MESHES.glob("*.ply"))) if shared else []
+    if args.meshreduce is not None and not (args.meshreduce.is_file()
+                                            and (BASELINES / "cmds.txt").exists()):
+        sys.exit(f"--meshreduce: {args.meshreduce} or {BASELINES / 'cmds.txt'} not found")
     if not Path(args.judge_python).exists():
         sys.exit(f"the judge's interpreter {args.judge_python} was not found (see --help)")
     meshes = [MESHES / f"{n}.ply" for n in names]
@@ -137,9 +179,21 @@ def main() -> None:
         name = mesh.stem
         out = Path(args.out) / label.replace("/", "_") / name
         out.mkdir(parents=True, exist_ok=True)
-        t = theirs(name, mesh, args.judge_python, Path(args.out),
-                   [b for b in (args.baselines, BASELINES) if b is not None])
         rows_here = [("ours", ours(mesh, label, args.judge_python, out, args.set, []))]
+        if args.meshreduce is not None:      # right after ours: the same machine, same load
+            mout = Path(args.out) / "meshreduce" / name
+            shutil.rmtree(mout, ignore_errors=True)
+            mout.mkdir(parents=True)
+            timing = run_meshreduce(args.meshreduce, mesh, mout)
+            for stale in Path(args.out).glob(f"theirs_{name}_*.json"):
+                stale.unlink()
+            t = theirs(name, mesh, args.judge_python, Path(args.out), [mout.parent])
+            t.update(timing, time_src="same run")
+        else:
+            t = theirs(name, mesh, args.judge_python, Path(args.out),
+                       [b for b in (args.baselines, BASELINES) if b is not None])
+            if t is not None:
+                t["time_src"] = "recorded"
         if args.staged:
             sout = out / "staged"
             sout.mkdir(exist_ok=True)
@@ -157,7 +211,8 @@ def main() -> None:
             write_json(args.json, records)
     cols = ["mesh", "row", "dpsnr", "psnr", "psnr_mmt", "file_vs_ply", "storage", "disk", "shell",
             "iso_base", "iso_mmt",
-            "geom_err", "cracks", "topology", "base_f", "base_f_mmt", "time_s"]
+            "geom_err", "cracks", "topology", "base_f", "base_f_mmt", "time_s", "time_mmt",
+            "time_x", "time_src"]
     print_table(rows, cols, title="ours vs micromesh-tools (judge PSNR; storage (formula), disk "
                                   "(.bin + .bary), shell and geometric error as ours / theirs)")
     for lab in dict.fromkeys(r["row"] for r in rows):
@@ -165,6 +220,10 @@ def main() -> None:
         if len(d):
             print(f"{lab}: mean ΔPSNR {d.mean():+.2f} dB, worst {d.min():+.2f} dB over {len(d)} "
                   f"meshes")
+        x = np.array([r["time_x"] for r in rows if r["row"] == lab and r["time_x"] is not None])
+        if len(x):
+            print(f"{lab}: time over micromesh-tools' median {np.median(x):.1f}x, worst "
+                  f"{x.max():.1f}x over {len(x)} meshes")
         alone = [r["mesh"] for r in rows if r["row"] == lab and r["dpsnr"] is None]
         if alone:
             print(f"{lab}: no micromesh-tools output to compare with for {', '.join(alone)} "
@@ -175,11 +234,14 @@ def _against(o: dict, t: dict | None) -> dict:
     """The columns that compare ours with micromesh-tools' (None without its output)."""
     if t is None:
         return dict.fromkeys(("dpsnr", "psnr_mmt", "storage", "disk", "shell", "iso_mmt",
-                              "geom_err", "base_f_mmt"))
+                              "geom_err", "base_f_mmt", "time_mmt", "time_x", "time_src"))
+    wall = t.get("wall_s")
     return {"dpsnr": round(o["psnr"] - t["psnr"], 2), "psnr_mmt": round(t["psnr"], 2),
             "storage": round(o["bytes"] / t["bytes"], 3), "disk": round(o["disk"] / t["disk"], 3),
             "shell": round(o["shell"] / t["shell"], 3), "iso_mmt": round(t["iso_base"], 3),
-            "geom_err": round(o["geom_err"] / t["geom_err"], 3), "base_f_mmt": t["base_faces"]}
+            "geom_err": round(o["geom_err"] / t["geom_err"], 3), "base_f_mmt": t["base_faces"],
+            "time_mmt": wall, "time_x": round(o["time_s"] / wall, 1) if wall else None,
+            "time_src": t.get("time_src")}
 
 
 if __name__ == "__main__":

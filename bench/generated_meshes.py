@@ -1,8 +1,13 @@
 """Meshes made here, for the shapes ../shared/meshes lacks: parts of high genus, an assembly
 of many parts and a large scan-like surface, with that surface without its noise as a control
-(issue 48). Deterministic: the same PLY bytes on every machine, so micromesh-tools' outputs
-for them can be made once elsewhere and put beside the shared ones
-(``../shared/baselines/NAME/out_NAME.gltf``).
+(issue 48); and meshes like those issue 59 measured on, which the first ones do not resemble:
+CAD plates of genus 11 and 133 and a mounting bracket with four holes, triangulated as a CAD
+program's STL export is (``cad_meshes``), a scanned statue with two tiny holes and a scanned
+bust with non-manifold edges (``scan_meshes``). Deterministic: the same PLY bytes on every
+machine (the CAD parts' and scans' triangulations come from scipy's Qhull: with the pinned
+scipy), so micromesh-tools' outputs for them can be made once elsewhere and put beside the
+shared ones (``../shared/baselines/NAME/out_NAME.gltf``), or made in the same run
+(``construct_bench.py --meshreduce``).
 
     python bench/generated_meshes.py OUT_DIR [NAME ...]     # writes OUT_DIR/NAME.ply
 """
@@ -17,6 +22,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from core.io.ply import write_ply  # noqa: E402
 from core.mesh.primitives import holed_plate, noisy_sphere, torus  # noqa: E402
+from cad_meshes import bracket, cad_plate  # noqa: E402
+from scan_meshes import nonmanifold_bust, scanned_statue  # noqa: E402
 
 
 def plate(genus: int, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -82,6 +89,11 @@ GENERATED = {
     "gen_parts86": assembly,
     "gen_scan_871k": scan,
     "gen_scan_smooth_871k": lambda: scan(noisy=False),
+    "gen_cad_plate11_18k": lambda: cad_plate(11, 160),
+    "gen_cad_plate133_18k": lambda: cad_plate(133, 13),
+    "gen_bracket_10k": lambda: bracket(180),
+    "gen_statue_20k": scanned_statue,
+    "gen_bust_109k": nonmanifold_bust,
 }
 
 
