@@ -56,8 +56,8 @@ class Lattice:
         return len(self.P)
 
     def groups(self, base: TriMesh, size: int = GROUP) -> list:
-        """The triangles in groups of at most ``size`` over compact regions of ``base``, for
-        :mod:`core.fit.grouped`."""
+        """The triangles in groups of about ``size`` at most over compact regions of
+        ``base`` (:func:`core.fit.grouped.triangle_groups`)."""
         return triangle_groups(base.vertices[base.faces].mean(1), self.face_triangle_ptr,
                                size)
 
@@ -97,8 +97,8 @@ def moved_bound(dist: np.ndarray, tri: np.ndarray, triangles: np.ndarray,
     return bound * np.float32(1 + 1e-6)
 
 
-def reference_bounds(lattice: Lattice, base: TriMesh, ref: TriMesh, d: np.ndarray, density: float
-             ) -> tuple[Samples, np.ndarray]:
+def reference_bounds(lattice: Lattice, base: TriMesh, ref: TriMesh, d: np.ndarray,
+                     density: float) -> tuple[Samples, np.ndarray]:
     """The reference's samples, at least ``density`` per micro-triangle of the lattice
     displaced by ``d`` (``core.fit.samples``), and a distance within which the lattice has a
     point for each (float32): its distance to its nearest base face plus the largest height

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from ..fit.triangle_sums import f64
 from ..runtime.jit import kernel
 
 
@@ -108,7 +109,7 @@ class Membrane:
 
     def __matmul__(self, v: np.ndarray) -> np.ndarray:
         out = np.zeros(self.n)
-        _apply_pairs(self.pairs, np.ascontiguousarray(v, dtype=np.float64), out)
+        _apply_pairs(self.pairs, f64(v), out)
         return out
 
     def diagonal(self) -> np.ndarray:
@@ -116,7 +117,7 @@ class Membrane:
 
 
 @kernel(cache=True)
-def _apply_pairs(pairs, v, out):
+def _apply_pairs(pairs, v, out):  # pragma: no cover
     """out += GᵀG v: (v_i − v_j) added at i and taken at j, pair by pair, in order (one
     thread: the sums do not depend on the thread count)."""
     for k in range(pairs.shape[0]):
