@@ -120,6 +120,25 @@ def theirs(name: str, mesh: Path, python: str, cache: Path, baselines: list[Path
             "base_faces": j["counts"]["base_faces"], "micro_faces": j["counts"]["micro_faces_full"]}
 
 
+def theirs_now(args, mesh: Path) -> dict | None:
+    """micromesh-tools' figures for ``mesh``: its ``meshreduce`` run now where
+    ``--meshreduce`` is given (its wall time of this run), else :func:`theirs` of the
+    baseline folders (the wall time they recorded)."""
+    name, cache = mesh.stem, Path(args.out)
+    if args.meshreduce is None:
+        t = theirs(name, mesh, args.judge_python, cache,
+                   [b for b in (args.baselines, BASELINES) if b is not None])
+        return None if t is None else {**t, "time_src": "recorded"}
+    mout = cache / "meshreduce" / name
+    shutil.rmtree(mout, ignore_errors=True)
+    mout.mkdir(parents=True)
+    timing = run_meshreduce(args.meshreduce, mesh, mout)
+    for stale in cache.glob(f"theirs_{name}_*.json"):
+        stale.unlink()
+    t = theirs(name, mesh, args.judge_python, cache, [mout.parent])
+    return {**t, **timing, "time_src": "same run"}
+
+
 def ours(mesh: Path, label: str, python: str, out: Path, overrides: list[str],
          extra: list[str]) -> dict:
     name = mesh.stem
@@ -180,20 +199,7 @@ def main() -> None:
         out = Path(args.out) / label.replace("/", "_") / name
         out.mkdir(parents=True, exist_ok=True)
         rows_here = [("ours", ours(mesh, label, args.judge_python, out, args.set, []))]
-        if args.meshreduce is not None:      # right after ours: the same machine, same load
-            mout = Path(args.out) / "meshreduce" / name
-            shutil.rmtree(mout, ignore_errors=True)
-            mout.mkdir(parents=True)
-            timing = run_meshreduce(args.meshreduce, mesh, mout)
-            for stale in Path(args.out).glob(f"theirs_{name}_*.json"):
-                stale.unlink()
-            t = theirs(name, mesh, args.judge_python, Path(args.out), [mout.parent])
-            t.update(timing, time_src="same run")
-        else:
-            t = theirs(name, mesh, args.judge_python, Path(args.out),
-                       [b for b in (args.baselines, BASELINES) if b is not None])
-            if t is not None:
-                t["time_src"] = "recorded"
+        t = theirs_now(args, mesh)           # right after ours: the same machine, same load
         if args.staged:
             sout = out / "staged"
             sout.mkdir(exist_ok=True)
