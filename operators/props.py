@@ -45,8 +45,15 @@ class MICROMESH_PG_settings(bpy.types.PropertyGroup):
     ratio: FloatProperty(name="Ratio", default=1 / 32, min=1e-4, max=1.0, precision=4)
     target_faces: IntProperty(name="Triangles", default=1000, min=4)
     base_max_error: FloatProperty(name="Max Error", default=1e-3, min=0.0, max=0.5, precision=5,
-                                  description="Bound on the base's distance to the source, as a "
-                                              "fraction of its bounding-box diagonal (0: none)")
+                                  description="Bound on the base's RMS distance to the source, "
+                                              "as a fraction of its bounding-box diagonal "
+                                              "(0: none)")
+    base_max_distance: FloatProperty(name="Max Distance", default=4e-3, min=0.0, max=0.5,
+                                     precision=4,
+                                     description="Bound on the base's largest distance to the "
+                                                 "source, as a fraction of its bounding-box "
+                                                 "diagonal: the RMS error bound is tightened "
+                                                 "until it holds (0: none)")
     base_min_quality: FloatProperty(name="Min Quality", default=0.4, min=0.0, max=0.99,
                                     description="Floor on the shape (2r/R) of new base triangles")
     budget_mode: EnumProperty(name="Budget", default="RATIO", items=[

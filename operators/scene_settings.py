@@ -9,7 +9,8 @@ from ..core.settings.fields import preset
 
 def panel_overrides(s) -> dict:
     """The panel's base-mesh targets and storage budget as settings."""
-    out = {"base_max_error": s.base_max_error, "base_min_quality": s.base_min_quality,
+    out = {"base_max_error": s.base_max_error, "base_max_distance": s.base_max_distance,
+           "base_min_quality": s.base_min_quality,
            "base_ratio": s.ratio if s.decimate_mode == "RATIO" else 0.0,
            "base_faces": s.target_faces if s.decimate_mode == "TARGET" else 0,
            "budget_ratio": 0.0, "budget_micro_triangles": 0, "budget_bytes": 0}

@@ -50,6 +50,7 @@ class MICROMESH_PT_base(_Panel, bpy.types.Panel):
         if s.base_method == "COLLAPSE":
             row = layout.row(align=True)
             row.prop(s, "base_max_error")
+            row.prop(s, "base_max_distance")
             row.prop(s, "base_min_quality")
         else:
             row = layout.row()

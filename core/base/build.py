@@ -30,6 +30,13 @@ from .surface_flips import surface_flips
 from .topology import differences, topology
 
 
+# Where the base's largest distance is over ``max_distance``, the RMS bound is multiplied by
+# this and the decimation run again, at most this many times (the CAD plate of genus 11:
+# 1.0e-3 -> 0.8e-3 -> ...; docs/performance.md).
+TIGHTEN = 0.8
+TIGHTEN_TRIES = 8
+
+
 class BaseError(ValueError):
     """A base-mesh target that cannot be used."""
 
@@ -70,6 +77,7 @@ def welded(mesh: TriMesh) -> TriMesh:
 
 def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
                max_error: float = 1e-3, min_quality: float = 0.4, refine: float = 0.0,
+               max_distance: float = 0.0,
                progress: Callable[[float], None] | None = None,
                should_stop: Callable[[], bool] | None = None) -> BaseMesh:
     """Decimate ``reference`` into a base mesh that keeps its topology.
@@ -82,12 +90,18 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
     ``refine``: then edges split where a face's furthest reference vertex × its area is more
     than this many times the mean face's (:func:`core.base.refine.refine`; 0: none; not with
     a face count asked for).
+    ``max_distance``: bound on the largest distance from a reference vertex to the base,
+    relative to the diagonal (0: none; not with a face count asked for, nor without
+    ``max_error``). Where the RMS bound leaves a vertex further, as on CAD parts whose flat
+    faces hold the RMS down while their rims stay coarse, the decimation runs again with
+    the RMS bound times ``TIGHTEN``, at most ``TIGHTEN_TRIES`` times.
     ``progress(fraction)``; ``should_stop()`` cancels (``DecimateCancelled``).
 
     The report: ``target_faces``, ``faces``, ``stopped`` ("target" or "limit"), ``flips``
     (the decimation's, of slivers), ``surface_flips``, ``splits``,
     ``error_mean`` / ``error_max`` (reference vertices to the base, over the diagonal; mean
-    weighted by vertex area), ``isotropy``, ``topology_input`` / ``topology_base``,
+    weighted by vertex area), ``rms_bound`` (the RMS bound the decimation last ran with),
+    ``isotropy``, ``topology_input`` / ``topology_base``,
     ``warnings`` (sentences), ``time_s``.
     """
     t0 = time.perf_counter()
@@ -97,40 +111,44 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
         raise BaseError("min_quality must be within [0, 1)")
     if not np.isfinite(refine) or refine < 0:
         raise BaseError("refine must be a finite number >= 0 (0: none)")
+    if not np.isfinite(max_distance) or max_distance < 0:
+        raise BaseError("max_distance must be a finite number >= 0 (0: no bound)")
     target = target_faces(reference.n_faces, ratio, faces)
     norm = unit_sphere_normalization(reference.vertices)
     unit = welded(TriMesh(norm.apply(reference.vertices).astype(np.float32), reference.faces))
     diag = unit.bbox_diagonal
     n0 = reference.n_faces
+    used = np.zeros(unit.n_vertices, bool)
+    used[unit.faces.reshape(-1)] = True
+    w = unit.vertex_areas[used]
+    tries = TIGHTEN_TRIES if max_distance > 0 and max_error > 0 and faces == 0 else 0
+    bound = max_error
 
     def report(n: int, tgt: int) -> None:
         if progress is not None:
             progress(min(1.0, (n0 - n) / max(n0 - tgt, 1)))
 
-    dec = decimate(unit, target, max_error=max_error * diag if max_error > 0 else np.inf,
-                   min_quality=min_quality, progress=report, should_stop=should_stop)
-    base_unit = TriMesh(dec.vertices, dec.faces)
-    decimated_faces = base_unit.n_faces
-    base_unit, turned = surface_flips(base_unit, unit, min_quality)
-    splits = 0
-    if refine > 0 and faces == 0:
-        base_unit, splits = refined(base_unit, unit, refine)
-    _, _, dist = ClosestPointIndex(base_unit.vertices, base_unit.faces).query(unit.vertices)
-    used = np.zeros(unit.n_vertices, bool)
-    used[unit.faces.reshape(-1)] = True
-    w = unit.vertex_areas[used]
-    d = dist[used] / diag
+    for attempt in range(tries + 1):
+        made = _collapsed(unit, target, bound * diag if bound > 0 else np.inf, min_quality,
+                          refine if faces == 0 else 0.0, report, should_stop)
+        base_unit, dec = made.mesh, made.decimation
+        _, _, dist = ClosestPointIndex(base_unit.vertices, base_unit.faces).query(unit.vertices)
+        d = dist[used] / diag
+        if attempt == tries or d.max() <= max_distance:
+            break
+        bound *= TIGHTEN
     topo_in, topo_base = topology(unit), topology(base_unit)
     notes = []
-    if decimated_faces > target and target > 1:
-        notes.append(f"the base stopped at {decimated_faces} faces instead of {target}: "
+    if len(dec.faces) > target and target > 1:
+        notes.append(f"the base stopped at {len(dec.faces)} faces instead of {target}: "
                      "no further collapse keeps the error bound, the topology and the "
                      "triangle shapes")
     rep = {"target_faces": target if target > 1 else None, "faces": base_unit.n_faces,
            "vertices": base_unit.n_vertices, "stopped": dec.stopped,
            "collapses": dec.collapses, "rejected": dec.rejected, "flips": dec.flips,
-           "surface_flips": turned, "splits": splits,
-           "max_error": max_error, "min_quality": min_quality,
+           "surface_flips": made.turned, "splits": made.splits,
+           "max_error": max_error, "rms_bound": bound, "max_distance": max_distance,
+           "min_quality": min_quality,
            "error_mean": float((d * w).sum() / max(w.sum(), 1e-300)),
            "error_max": float(d.max()), "isotropy": isotropy(base_unit.vertices, base_unit.faces),
            "topology_input": topo_in.as_dict(), "topology_base": topo_base.as_dict(),
@@ -139,11 +157,36 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
     return BaseMesh(TriMesh(norm.invert(base_unit.vertices), base_unit.faces), rep)
 
 
+@dataclass
+class _Collapsed:
+    """A decimation (``core.base.decimate.Decimation``), then the mesh after its surface
+    flips (``turned`` edges) and splits."""
+
+    mesh: TriMesh
+    decimation: object
+    turned: int
+    splits: int
+
+
+def _collapsed(unit: TriMesh, target: int, bound: float, min_quality: float, refine: float,
+               report: Callable[[int, int], None],
+               should_stop: Callable[[], bool] | None) -> _Collapsed:
+    """One decimation of ``unit`` to ``target`` faces within the RMS ``bound`` (absolute),
+    its surface flips and, with ``refine`` > 0, its splits."""
+    dec = decimate(unit, target, max_error=bound, min_quality=min_quality, progress=report,
+                   should_stop=should_stop)
+    mesh, turned = surface_flips(TriMesh(dec.vertices, dec.faces), unit, min_quality)
+    splits = 0
+    if refine > 0:
+        mesh, splits = refined(mesh, unit, refine)
+    return _Collapsed(mesh, dec, turned, splits)
+
+
 def base_for(reference: TriMesh, s: ConstructSettings,
              progress: Callable[[float], None] | None = None,
              should_stop: Callable[[], bool] | None = None) -> BaseMesh:
     """:func:`build_base` with the targets of construction settings (``base_*``)."""
     return build_base(reference, ratio=s.base_ratio, faces=s.base_faces,
                       max_error=s.base_max_error, min_quality=s.base_min_quality,
-                      refine=s.base_refine,
+                      refine=s.base_refine, max_distance=s.base_max_distance,
                       progress=progress, should_stop=should_stop)

@@ -48,6 +48,8 @@ class ConstructSettings:
     base_ratio: float = 1 / 32       # target faces as a fraction of the input's (0: error only)
     base_faces: int = 0              # target face count (> 0: instead of the ratio)
     base_max_error: float = 1e-3     # RMS distance bound / bbox diagonal (0: none)
+    base_max_distance: float = 4e-3  # largest distance bound / bbox diagonal: the RMS bound
+                                     # tightened until it holds (core.base.build; 0: none)
     base_min_quality: float = 0.4    # floor on 2r/R of new base triangles
     base_refine: float = 8.0         # then edges split where a face holds more than this
                                      # many times the mean face's (furthest reference

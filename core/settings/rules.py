@@ -19,6 +19,7 @@ RANGES: dict[str, tuple[float, float, bool, bool]] = {
     "base_ratio": (0, 1, True, True),
     "base_faces": (0, INF, True, False),
     "base_max_error": (0, 1, True, False),
+    "base_max_distance": (0, 1, True, False),
     "base_min_quality": (0, 1, True, False),
     "base_refine": (0, 1e6, True, False),
     "tau_in": (0, 1e3, True, False),

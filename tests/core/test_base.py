@@ -118,6 +118,26 @@ def test_error_bound_holds_and_stops_early():
     assert loose.report["rejected"]["error"] == 0
 
 
+def test_a_largest_distance_bound_tightens_the_rms_bound():
+    """A CAD plate's flat faces hold the RMS distance down while its filleted rims stay
+    coarse: the largest distance bound runs the decimation again with a tighter RMS bound
+    until it holds, keeping the topology; a face count asked for is left as it is."""
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
+    from cad_meshes import cad_plate
+
+    ref = TriMesh(*cad_plate(11, 160))
+    loose = build_base(ref, max_error=1e-3)
+    assert loose.report["error_max"] > 4e-3 and loose.report["rms_bound"] == 1e-3
+    b = build_base(ref, max_error=1e-3, max_distance=4e-3)
+    assert b.report["error_max"] <= 4e-3 < loose.report["error_max"]
+    assert b.report["rms_bound"] < 1e-3 and b.mesh.n_faces > loose.mesh.n_faces
+    assert_same_topology(ref, b.mesh)
+    asked = build_base(ref, faces=1500, max_error=1e-3, max_distance=4e-3)
+    assert asked.report["rms_bound"] == 1e-3
+
+
 def test_triangles_stay_well_shaped():
     v, f = primitives.noisy_sphere(20000, amplitude=0.05)
     b = build_base(TriMesh(v, f), ratio=1 / 32, min_quality=0.4)
@@ -148,7 +168,7 @@ def test_flat_regions_decimate_evenly_and_creases_stay():
 def test_bad_targets_are_refused():
     ref = sphere(4)
     for kw in (dict(ratio=1.5), dict(faces=-1), dict(max_error=-1.0), dict(max_error=np.nan),
-               dict(min_quality=1.0)):
+               dict(min_quality=1.0), dict(max_distance=-1.0), dict(max_distance=np.inf)):
         with pytest.raises(BaseError):
             build_base(ref, **kw)
 
