@@ -98,8 +98,8 @@ class ConstructSettings:
                                      # result is what a .bary file holds (core.micro.bounds.baked)
     lp_bounds: bool = True           # fold the least-volume bounds first and fit again
                                      # (core.micro.least_volume.lp_bounds; ours): a thinner shell
-    polish_steps: int = 40           # then image steps on the values within those bounds
-                                     # (core.construct.polish; ours; 0: none)
+    polish_steps: int = 0            # then image steps on the values within those bounds
+                                     # (core.construct.polish; ours; 0: none; "quality": 40)
 
     # losses
     w_render: float = 1.0

@@ -61,7 +61,7 @@ def small(**kw):
 @pytest.mark.parametrize("device", DEVICES)
 def test_short_run_beats_staged_baseline(scene, device):
     ref, base = scene
-    s = small(device=device)
+    s = small(device=device, polish_steps=3)     # every finishing phase, polishing too
     b = staged_baseline(ref, base, 2, s)
     seen = []
     r = construct(ref, base, None, s, progress=seen.append)

@@ -37,11 +37,11 @@ def test_times_scale_with_the_machine_speed_and_memory_does_not():
     # The time limit is wall time, from the base building to the metrics: the loop gets what
     # the rest leaves of 90 % of it, so a slower machine optimises less within the same
     # limit...
-    limited = preset("default", time_limit_s=240.0)
+    limited = preset("default", time_limit_s=200.0)
     for speed in (1.0, 0.9):
         e = estimate(800_000, limited, speed=speed)
         free = estimate(800_000, s, speed=speed)
-        assert e.seconds == pytest.approx(3.0 / speed + e.phases["input"] + 0.9 * 240.0)
+        assert e.seconds == pytest.approx(3.0 / speed + e.phases["input"] + 0.9 * 200.0)
         assert e.seconds < free.seconds
     # ...and where the base, the fit's first round and bounds (half its estimate) and the
     # metrics alone take longer, the loop only subdivides (about 10 iterations each).
