@@ -22,7 +22,7 @@ from .args import BatchError
 from .interrupt import Interrupt
 
 BATCH_PY = Path(__file__).resolve().parents[1] / "batch.py"
-CANCEL_WAIT_S = 20      # Ctrl-C: how long cancelled tasks may take to end, before and after force
+CANCEL_WAIT_S = 20      # Ctrl-C: how long the cancelled tasks' workers may take to end
 WAIT_S = 0.5            # the longest a wait for the next result holds off Ctrl-C
 
 
@@ -112,7 +112,9 @@ def _run(ray, args, settings, jobs, sets, skipped, t_start) -> int:
                 records[i] = _outcome(ray, ref, jobs[i], sets[i])
                 _report(progress, records[i])
     except KeyboardInterrupt:
-        _cancel(ray, pending)
+        for ref in pending:      # the worker killed, and its batch.py with it
+            ray.cancel(ref, force=True)
+        ray.wait(pending, num_returns=len(pending), timeout=CANCEL_WAIT_S)
         for i in {refs[ref] for ref in pending}:      # what those runs had begun to write
             ray_task.remove_partials(sets[i].folder, sets[i].name)
         progress.close()
@@ -122,22 +124,6 @@ def _run(ray, args, settings, jobs, sets, skipped, t_start) -> int:
     progress.close()
     statuses = _finish(args, jobs, sets, records, skipped, len(nodes), t_start, "")
     return 3 if "crashed" in statuses else 1 if "failed" in statuses else 0
-
-
-def _cancel(ray, pending: list) -> None:
-    """Ctrl-C: the ``pending`` tasks ended, gently first. Ray raises KeyboardInterrupt in a
-    running task, whose ``subprocess.run`` kills its ``batch.py``; a task still running
-    ``CANCEL_WAIT_S`` later is killed with its worker (force). Forcing at once crashed the
-    driver now and then: a task that ended as it was cancelled had its reply arrive for a
-    task Ray had already dropped ("Tried to complete task that was not pending",
-    task_manager.cc, Ray 2.60)."""
-    for ref in pending:
-        ray.cancel(ref, force=False)
-    _, left = ray.wait(pending, num_returns=len(pending), timeout=CANCEL_WAIT_S)
-    for ref in left:
-        ray.cancel(ref, force=True)
-    if left:
-        ray.wait(left, num_returns=len(left), timeout=CANCEL_WAIT_S)
 
 
 def _outcome(ray, ref, path: Path, out) -> dict:
