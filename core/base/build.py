@@ -143,6 +143,11 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
         notes.append(f"the base stopped at {len(dec.faces)} faces instead of {target}: "
                      "no further collapse keeps the error bound, the topology and the "
                      "triangle shapes")
+    if bound < max_error:
+        notes.append(f"the RMS error bound was tightened to {bound:.2g} of the diagonal so that "
+                     f"the base lies within {max_distance:.2g} of every source vertex"
+                     + ("" if d.max() <= max_distance else
+                        f"; it still misses that by up to {d.max():.2g}"))
     rep = {"target_faces": target if target > 1 else None, "faces": base_unit.n_faces,
            "vertices": base_unit.n_vertices, "stopped": dec.stopped,
            "collapses": dec.collapses, "rejected": dec.rejected, "flips": dec.flips,

@@ -133,6 +133,8 @@ def test_a_largest_distance_bound_tightens_the_rms_bound():
     b = build_base(ref, max_error=1e-3, max_distance=4e-3)
     assert b.report["error_max"] <= 4e-3 < loose.report["error_max"]
     assert b.report["rms_bound"] < 1e-3 and b.mesh.n_faces > loose.mesh.n_faces
+    assert any("tightened" in n and "0.004" in n for n in b.report["notes"])
+    assert not any("tightened" in n for n in loose.report["notes"])
     assert_same_topology(ref, b.mesh)
     asked = build_base(ref, faces=1500, max_error=1e-3, max_distance=4e-3)
     assert asked.report["rms_bound"] == 1e-3
