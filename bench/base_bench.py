@@ -93,9 +93,11 @@ def main() -> None:
             bl, t_bl = blender_decimate(ref, ours.mesh.n_faces)
             rows.append({"mesh": name, "method": "blender", **measure(ref, bl),
                          "time_s": round(t_bl, 2)})
-        judged = Path(args.judged) / f"theirs_{name}.json"
-        if judged.exists():
-            j = json.loads(judged.read_text())
+        # construct_bench.py's cache: theirs_NAME_<hash of their file>.json (newest first)
+        judged = sorted(Path(args.judged).glob(f"theirs_{name}_*.json"),
+                        key=lambda f: f.stat().st_mtime, reverse=True)
+        if judged:
+            j = json.loads(judged[0].read_text())
             rows.append({"mesh": name, "method": "micromesh-tools",
                          "faces": j["counts"]["base_faces"],
                          "iso": round(j["isotropy"]["iso_base"], 3)})
