@@ -116,11 +116,9 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
     target = target_faces(reference.n_faces, ratio, faces)
     norm = unit_sphere_normalization(reference.vertices)
     unit = welded(TriMesh(norm.apply(reference.vertices).astype(np.float32), reference.faces))
-    diag = unit.bbox_diagonal
     n0 = reference.n_faces
     used = np.zeros(unit.n_vertices, bool)
     used[unit.faces.reshape(-1)] = True
-    w = unit.vertex_areas[used]
     tries = TIGHTEN_TRIES if max_distance > 0 and max_error > 0 and faces == 0 else 0
     bound = max_error
 
@@ -129,25 +127,13 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
             progress(min(1.0, (n0 - n) / max(n0 - tgt, 1)))
 
     for attempt in range(tries + 1):
-        made = _collapsed(unit, target, bound * diag if bound > 0 else np.inf, min_quality,
+        made = _collapsed(unit, used, target, bound, min_quality,
                           refine if faces == 0 else 0.0, report, should_stop)
-        base_unit, dec = made.mesh, made.decimation
-        _, _, dist = ClosestPointIndex(base_unit.vertices, base_unit.faces).query(unit.vertices)
-        d = dist[used] / diag
-        if attempt == tries or d.max() <= max_distance:
+        if attempt == tries or made.distance.max() <= max_distance:
             break
         bound *= TIGHTEN
+    base_unit, dec, d, w = made.mesh, made.decimation, made.distance, unit.vertex_areas[used]
     topo_in, topo_base = topology(unit), topology(base_unit)
-    notes = []
-    if len(dec.faces) > target and target > 1:
-        notes.append(f"the base stopped at {len(dec.faces)} faces instead of {target}: "
-                     "no further collapse keeps the error bound, the topology and the "
-                     "triangle shapes")
-    if bound < max_error:
-        notes.append(f"the RMS error bound was tightened to {bound:.2g} of the diagonal so that "
-                     f"the base lies within {max_distance:.2g} of every source vertex"
-                     + ("" if d.max() <= max_distance else
-                        f"; it still misses that by up to {d.max():.2g}"))
     rep = {"target_faces": target if target > 1 else None, "faces": base_unit.n_faces,
            "vertices": base_unit.n_vertices, "stopped": dec.stopped,
            "collapses": dec.collapses, "rejected": dec.rejected, "flips": dec.flips,
@@ -157,7 +143,8 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
            "error_mean": float((d * w).sum() / max(w.sum(), 1e-300)),
            "error_max": float(d.max()), "isotropy": isotropy(base_unit.vertices, base_unit.faces),
            "topology_input": topo_in.as_dict(), "topology_base": topo_base.as_dict(),
-           "warnings": differences(topo_in, topo_base), "notes": notes,
+           "warnings": differences(topo_in, topo_base),
+           "notes": _notes(made, target, max_error, bound, max_distance),
            "time_s": time.perf_counter() - t0}
     return BaseMesh(TriMesh(norm.invert(base_unit.vertices), base_unit.faces), rep)
 
@@ -165,26 +152,49 @@ def build_base(reference: TriMesh, ratio: float = 1 / 32, faces: int = 0,
 @dataclass
 class _Collapsed:
     """A decimation (``core.base.decimate.Decimation``), then the mesh after its surface
-    flips (``turned`` edges) and splits."""
+    flips (``turned`` edges) and splits, and the distance (over the diagonal) to it from each
+    reference vertex that a face uses."""
 
     mesh: TriMesh
     decimation: object
     turned: int
     splits: int
+    distance: np.ndarray
 
 
-def _collapsed(unit: TriMesh, target: int, bound: float, min_quality: float, refine: float,
-               report: Callable[[int, int], None],
+def _collapsed(unit: TriMesh, used: np.ndarray, target: int, bound: float, min_quality: float,
+               refine: float, report: Callable[[int, int], None],
                should_stop: Callable[[], bool] | None) -> _Collapsed:
-    """One decimation of ``unit`` to ``target`` faces within the RMS ``bound`` (absolute),
-    its surface flips and, with ``refine`` > 0, its splits."""
-    dec = decimate(unit, target, max_error=bound, min_quality=min_quality, progress=report,
-                   should_stop=should_stop)
+    """One decimation of ``unit`` to ``target`` faces within the RMS ``bound`` (relative to
+    the diagonal; 0: none), its surface flips and, with ``refine`` > 0, its splits; the
+    distances from ``unit``'s vertices ``used`` (bool (n,)) to the result."""
+    diag = unit.bbox_diagonal
+    dec = decimate(unit, target, max_error=bound * diag if bound > 0 else np.inf,
+                   min_quality=min_quality, progress=report, should_stop=should_stop)
     mesh, turned = surface_flips(TriMesh(dec.vertices, dec.faces), unit, min_quality)
     splits = 0
     if refine > 0:
         mesh, splits = refined(mesh, unit, refine)
-    return _Collapsed(mesh, dec, turned, splits)
+    _, _, dist = ClosestPointIndex(mesh.vertices, mesh.faces).query(unit.vertices)
+    return _Collapsed(mesh, dec, turned, splits, dist[used] / diag)
+
+
+def _notes(made: _Collapsed, target: int, max_error: float, bound: float,
+           max_distance: float) -> list[str]:
+    """What a user should know of where the base stopped and of the bound it was made with."""
+    notes = []
+    faces = len(made.decimation.faces)
+    if faces > target and target > 1:
+        notes.append(f"the base stopped at {faces} faces instead of {target}: "
+                     "no further collapse keeps the error bound, the topology and the "
+                     "triangle shapes")
+    if bound < max_error:
+        far = float(made.distance.max())
+        notes.append(f"the RMS error bound was tightened to {bound:.2g} of the diagonal so that "
+                     f"the base lies within {max_distance:.2g} of every source vertex"
+                     + ("" if far <= max_distance else
+                        f"; it still misses that by up to {far:.2g}"))
+    return notes
 
 
 def base_for(reference: TriMesh, s: ConstructSettings,
