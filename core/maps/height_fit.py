@@ -41,6 +41,7 @@ from .lattice import DrawnSurface, Lattice, moved_bound, reference_bounds
 from .seams import seam_gap_max, seam_points
 from .texel_solve import closed, pcg
 from .texels import Membrane, TexelGrid, bilinear_taps
+from .ties import texel_ties
 
 # The texels are solved to this RMS height (the unit sphere's radius 1), where that is reached
 # before the relative residual (texel_solve.RTOL): below float32's resolution of the drawn
@@ -118,7 +119,7 @@ def fit_height_map(mm: MicroMesh, reference: TriMesh, atlas: Atlas, resolution: 
     texels = _Texels.set_up(lattice, uv, base, U, ref, atlas, res, seam_level)
     del uv
     d = texels.SB @ texels.x
-    starved = texels.grid.n < len(lattice.triangles) / 4
+    starved = texels_per_face < 4 ** level / 4     # under a texel per 4 lattice triangles
     samples, bound = reference_bounds(lattice, base, ref, d,
                                       DENSITY / 2 if starved else DENSITY)
     groups = lattice.groups(base)
@@ -170,22 +171,25 @@ class _Texels:
     def set_up(cls, lattice: Lattice, uv: np.ndarray, base: TriMesh, U: np.ndarray,
                ref: TriMesh, atlas: Atlas, res: int, seam_level: int) -> "_Texels":
         lt, lw = bilinear_taps(uv, res, res)
-        seams = seam_points(base, atlas, seam_level)
+        face, bary = texel_faces(atlas, res, res, chunk=CHUNK)
+        filled = face >= 0
+        ties = texel_ties(base, atlas, res, res, filled)
+        seams = seam_points(base, atlas, seam_level, skip=ties.closed)
         apart = np.any(seams.uv_a != seams.uv_b, axis=1)
         at, aw = bilinear_taps(seams.uv_a[apart], res, res)
         bt, bw = bilinear_taps(seams.uv_b[apart], res, res)
-        face, bary = texel_faces(atlas, res, res, chunk=CHUNK)
-        filled = face >= 0
         grid = TexelGrid.covering(res, res, ndimage.binary_dilation(filled, iterations=2),
-                                  lt, at, bt)
+                                  lt, at, bt, ties=ties)
         start = _bake(base, U, ref, face, bary, filled)
         del face, bary
         length = np.linalg.norm(lattice.D, axis=1)
         SB = (sp.diags(1.0 / length) @ grid.sampling(lt, lw)).tocsr()
         C = (grid.sampling(at, aw) - grid.sampling(bt, bw)).tocsr()
-        return cls(grid, SB, C, (C.T @ C).tocsr(), grid.membrane(),
-                   start.reshape(-1)[grid.texels].copy(),
-                   int(len(np.unique(seams.edge[seams.edge >= 0]))))
+        C.data[np.abs(C.data) < 1e-12] = 0.0        # both sides on tied texels
+        C.eliminate_zeros()
+        C = C[np.diff(C.indptr) > 0]
+        return cls(grid, SB, C, (C.T @ C).tocsr(), grid.membrane(), grid.values(start),
+                   int(len(np.unique(seams.edge[seams.edge >= 0]))) + int(ties.closed.sum()))
 
     def solve(self, lattice: Lattice, d: np.ndarray, groups: list, samples: Samples,
               bound: np.ndarray, slopes: float, should_stop: Callable[[], bool]
@@ -239,6 +243,4 @@ def _nearest_fill(image: np.ndarray, known: np.ndarray) -> np.ndarray:
 def _padded(image: np.ndarray, grid: TexelGrid) -> np.ndarray:
     """The texels outside the unknowns set to the nearest unknown's value (what a
     renderer's coarser mip levels and filtering read past the charts)."""
-    known = np.zeros(image.size, bool)
-    known[grid.texels] = True
-    return _nearest_fill(image, known.reshape(image.shape))
+    return _nearest_fill(image, grid.known())

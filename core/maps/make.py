@@ -8,7 +8,8 @@ from typing import Callable
 from ..mesh.reference import oriented_reference
 from ..mesh.trimesh import TriMesh
 from ..micro.micromesh import MicroMesh
-from .atlas import Atlas, uv_atlas
+from .atlas import Atlas
+from .blocks import block_atlas
 from .bake import Maps, drawn_normal_map
 from .height_fit import LEVEL, fit_height_map
 
@@ -17,7 +18,8 @@ def make_maps(mm: MicroMesh, reference: TriMesh | None, resolution: int,
               atlas: Atlas | None = None, level: int = LEVEL,
               progress: Callable[[dict], None] = lambda p: None,
               should_stop: Callable[[], bool] = lambda: False) -> Maps:
-    """The maps of ``mm`` at ``resolution``² on ``atlas`` (default: a new ``uv_atlas``).
+    """The maps of ``mm`` at ``resolution``² on ``atlas`` (default: a new ``block_atlas``,
+    whose seams the fit closes by tying texels).
 
     Args:
         mm: the result (world space): its base and unit directions carry the maps.
@@ -30,7 +32,7 @@ def make_maps(mm: MicroMesh, reference: TriMesh | None, resolution: int,
         ``level``, the charts' texels, and the fit's notes (seam gaps among them).
     """
     if atlas is None:
-        atlas = uv_atlas(mm.base, resolution)
+        atlas = block_atlas(mm.base, resolution)
     if reference is None:
         reference = mm.tessellate().to_trimesh()
     else:

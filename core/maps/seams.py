@@ -69,12 +69,16 @@ def seam_half_edges(base: TriMesh, atlas: Atlas) -> tuple[np.ndarray, np.ndarray
     return edge[i], np.stack([lo[lead[i]], hi[lead[i]]], 1), np.stack([lo[i], hi[i]], 1)
 
 
-def seam_points(base: TriMesh, atlas: Atlas, level: int) -> SeamPoints:
+def seam_points(base: TriMesh, atlas: Atlas, level: int,
+                skip: np.ndarray | None = None) -> SeamPoints:
     """The lattice points of ``level`` on every seam edge (both ends included), from both
     sides, and every base vertex that has several places in the atlas from each of them
     against its first (a vertex where fans of faces meet without an edge between them has
-    no seam edge to tie them) (:class:`SeamPoints`; a vertex's ``edge`` is -1)."""
+    no seam edge to tie them) (:class:`SeamPoints`; a vertex's ``edge`` is -1). ``skip``
+    (s,) bool per pair of :func:`seam_half_edges`: seams left out (closed otherwise)."""
     edge, a, b = seam_half_edges(base, atlas)
+    if skip is not None:
+        edge, a, b = edge[~skip], a[~skip], b[~skip]
     t = np.arange((1 << level) + 1) / float(1 << level)
     uv = atlas.uv
 

@@ -7,13 +7,15 @@ at ((x + 0.5) / W, (y + 0.5) / H), as glTF, Blender and :func:`core.maps.bake.sa
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
 from ..fit.triangle_sums import f64
 from ..runtime.jit import kernel
+from .ties import TexelTies
 
 
 def bilinear_taps(uv: np.ndarray, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
@@ -41,26 +43,41 @@ def bilinear_taps(uv: np.ndarray, width: int, height: int) -> tuple[np.ndarray, 
 class TexelGrid:
     """The texels of a (height, width) map that a fit solves for, numbered 0..n-1.
 
-    ``number`` (H * W,) int64: each texel's unknown number, -1 where it is not one;
-    ``texels`` (n,) int64: the flat texel number of each unknown.
+    ``number`` (H * W,) int64: each texel's unknown number, -1 where it is not one (texels
+    tied equal share one); ``texels`` (n,) int64: a flat texel number of each unknown;
+    ``follow`` (r, 4) flat texels (t, a, b, c) computed as t = a + b − c, not unknowns
+    (``core.maps.ties``).
     """
 
     width: int
     height: int
     number: np.ndarray
     texels: np.ndarray
+    follow: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.int64))
 
     @classmethod
-    def covering(cls, width: int, height: int, mask: np.ndarray, *taps: np.ndarray
-                 ) -> "TexelGrid":
-        """The texels of ``mask`` (H, W) bool and every texel in ``taps`` (flat numbers)."""
+    def covering(cls, width: int, height: int, mask: np.ndarray, *taps: np.ndarray,
+                 ties: TexelTies | None = None) -> "TexelGrid":
+        """The texels of ``mask`` (H, W) bool and every texel in ``taps`` (flat numbers),
+        those of ``ties.equal`` sharing an unknown and its followers computed."""
+        ties = ties if ties is not None else TexelTies.none()
         flat = np.asarray(mask, dtype=bool).reshape(-1).copy()
-        for t in taps:
+        for t in (*taps, ties.equal, ties.follow[:, 1:]):
             flat[np.asarray(t).reshape(-1)] = True
+        flat[ties.follow[:, 0]] = False
         texels = np.flatnonzero(flat)
         number = np.full(width * height, -1, np.int64)
-        number[texels] = np.arange(len(texels))
-        return cls(int(width), int(height), number, texels)
+        if len(ties.equal):
+            local = np.searchsorted(texels, ties.equal)
+            graph = sp.coo_matrix((np.ones(len(local)), (local[:, 0], local[:, 1])),
+                                  shape=(len(texels), len(texels)))
+            _, label = connected_components(graph, directed=False)
+            first = np.unique(label, return_index=True)[1]
+            number[texels] = label
+            texels = texels[first]
+        else:
+            number[texels] = np.arange(len(texels))
+        return cls(int(width), int(height), number, texels, ties.follow)
 
     @property
     def n(self) -> int:
@@ -68,34 +85,67 @@ class TexelGrid:
 
     def sampling(self, texels: np.ndarray, weights: np.ndarray) -> sp.csr_matrix:
         """(q, n) the lookups of :func:`bilinear_taps` as rows over the unknowns (every tap
-        must be an unknown: :meth:`covering` made with those taps)."""
-        cols = self.number[texels]
+        must be an unknown or a follower: :meth:`covering` made with those taps)."""
+        q, k = texels.shape
+        rows = np.repeat(np.arange(q), k)
+        flat, w = texels.reshape(-1), weights.reshape(-1)
+        cols = self.number[flat]
+        parts = [(rows, cols, w)]
+        if len(self.follow):
+            order = np.argsort(self.follow[:, 0])
+            at = np.clip(np.searchsorted(self.follow[order, 0], flat), 0, len(order) - 1)
+            hit = (cols < 0) & (self.follow[order[at], 0] == flat)
+            f = self.follow[order[at[hit]]]
+            r, wh = rows[hit], w[hit]
+            parts += [(r, self.number[f[:, 1]], wh), (r, self.number[f[:, 2]], wh),
+                      (r, self.number[f[:, 3]], -wh)]
+            keep = ~hit
+            parts[0] = (rows[keep], cols[keep], w[keep])
+        rows, cols, w = (np.concatenate(x) for x in zip(*parts))
         if (cols < 0).any():
             raise ValueError("a lookup reads a texel that is not an unknown")
-        q, k = texels.shape
-        m = sp.csr_matrix((weights.reshape(-1), cols.reshape(-1), np.arange(0, q * k + 1, k)),
-                          shape=(q, self.n))
+        m = sp.csr_matrix((w, (rows, cols)), shape=(q, self.n))
         m.sum_duplicates()
         return m
 
     def membrane(self) -> "Membrane":
-        """Σ (x_i − x_j)² over the pairs of 4-neighbouring unknowns: the smoothness that
-        gives the texels no lookup reads a value between their neighbours'."""
-        y, x = np.divmod(self.texels, self.width)
+        """Σ (x_i − x_j)² over the pairs of 4-neighbouring texels of different unknowns: the
+        smoothness that gives the texels no lookup reads a value between their
+        neighbours'."""
+        flat = np.flatnonzero(self.number >= 0)
+        y, x = np.divmod(flat, self.width)
         pairs = []
         for dy, dx in ((0, 1), (1, 0)):
             ok = (x + dx < self.width) & (y + dy < self.height)
-            j = np.full(self.n, -1, np.int64)
+            j = np.full(len(flat), -1, np.int64)
             j[ok] = self.number[(y[ok] + dy) * self.width + x[ok] + dx]
-            i = np.flatnonzero(j >= 0)
-            pairs.append(np.stack([i, j[i]], 1))
+            i = self.number[flat]
+            use = (j >= 0) & (j != i)
+            pairs.append(np.stack([i[use], j[use]], 1))
         kind = np.int32 if self.n < 2 ** 31 else np.int64
         return Membrane(np.concatenate(pairs).astype(kind), self.n)
 
     def image(self, values: np.ndarray, fill: np.ndarray) -> np.ndarray:
-        """(H, W) ``fill`` (H, W) with the unknowns' ``values`` (n,) put in."""
+        """(H, W) ``fill`` (H, W) with the unknowns' ``values`` (n,) put in, and the
+        followers computed."""
         out = np.array(fill, dtype=np.float64).reshape(-1)
-        out[self.texels] = values
+        flat = np.flatnonzero(self.number >= 0)
+        out[flat] = values[self.number[flat]]
+        f = self.follow
+        out[f[:, 0]] = out[f[:, 1]] + out[f[:, 2]] - out[f[:, 3]]
+        return out.reshape(self.height, self.width)
+
+    def values(self, image: np.ndarray) -> np.ndarray:
+        """(n,) each unknown's mean over its texels in ``image`` (H, W)."""
+        flat = np.flatnonzero(self.number >= 0)
+        num = self.number[flat]
+        total = np.bincount(num, np.asarray(image, np.float64).reshape(-1)[flat], self.n)
+        return total / np.bincount(num, minlength=self.n)
+
+    def known(self) -> np.ndarray:
+        """(H, W) bool: the texels the unknowns set (followers included)."""
+        out = self.number >= 0
+        out[self.follow[:, 0]] = True
         return out.reshape(self.height, self.width)
 
 

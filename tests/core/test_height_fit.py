@@ -10,7 +10,8 @@ import torch
 from core.spatial.bake import bake_displacements
 from core.render.cameras import fibonacci_cameras
 from core.io.images import HeightCode
-from core.maps import (AtlasError, MapsCancelled, TexelGrid, bilinear_taps, fit_height_map,
+from core.maps import (AtlasError, MapsCancelled, TexelGrid, bilinear_taps, block_atlas,
+                       fit_height_map,
                        sample, seam_points, texel_faces, unit_directions, uv_atlas)
 from core.maps.atlas import checked_resolution
 from core.maps.bake import base_point
@@ -22,16 +23,18 @@ from core.render import reference_images, render
 RES = 256
 
 
-@pytest.fixture(scope="module")
-def case():
-    """A ridged sphere of 20k faces (the source) over an 80-face icosphere (the base)."""
+@pytest.fixture(scope="module", params=["charts", "blocks"])
+def case(request):
+    """A ridged sphere of 20k faces (the source) over an 80-face icosphere (the base), on
+    xatlas' charts (seams closed by constraint rows) and on texel-aligned blocks (by tied
+    texels)."""
     v, f = noisy_sphere(20000, amplitude=0.03, seed=3)
     n = v / np.linalg.norm(v, axis=1, keepdims=True)
     v = v + n * (0.02 * np.sin(9 * n[:, 0]) * np.cos(7 * n[:, 1]))[:, None]
     ref = TriMesh(v, f)
     bv, bf = icosphere(2)
     mm = MicroMesh.flat(TriMesh(bv, bf), np.zeros(len(bf), int))
-    atlas = uv_atlas(mm.base, RES)
+    atlas = (uv_atlas if request.param == "charts" else block_atlas)(mm.base, RES)
     return ref, mm, atlas
 
 
@@ -184,7 +187,7 @@ def test_a_map_with_few_texels_for_its_lattice_takes_half_the_samples(case, monk
     monkeypatch.setattr(hf, "reference_bounds", lambda *a: asked.append(a[-1]) or original(*a))
     rich = fit_height_map(mm, ref, uv_atlas(mm.base, RES), RES, level=3, rounds=1)
     starved = fit_height_map(mm, ref, uv_atlas(mm.base, 64), 64, level=4, rounds=1)
-    assert rich.notes["texels_solved"] >= 64 * mm.base.n_faces / 4     # level 3: 64 a face
-    assert starved.notes["texels_solved"] < 256 * mm.base.n_faces / 4  # level 4: 256 a face
+    assert rich.notes["texels_per_face"] >= 64 / 4         # level 3: 64 lattice triangles
+    assert starved.notes["texels_per_face"] < 256 / 4      # level 4: 256
     assert asked == [hf.DENSITY, hf.DENSITY / 2]
     assert starved.notes["samples"] < rich.notes["samples"] * 4 / 2
