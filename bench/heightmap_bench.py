@@ -10,6 +10,9 @@ subprocess, exactly as a user would (default preset, no overrides), then with th
 - ``bake --res R`` on the same glTF: the conventional bake (rays both ways from each texel,
   as Blender's Selected-to-Active bake), tessellated and judged the same way (its time is the
   simplest alternative's: ``bake_s``);
+- the same bake on xatlas' charts of the same base (``psnr_bake_charts``): our atlas puts
+  every face in a texel-aligned block (``core.maps.blocks``), which the bake may like less
+  than charts; ``dpsnr_best`` is ours against the better of the two bakes;
 - the judge on our micro-mesh (``NAME.gltf`` + ``.bary``);
 - the seam gaps ``tess`` prints at levels 3, 4 and 5 (over the diagonal).
 
@@ -52,6 +55,9 @@ def child(case: dict) -> dict:
     from core.io import formats
     from core.io.mesh_files import read_mesh
     from core.io.micromesh_import import read_micromesh
+    import numpy as np
+
+    from core.maps import Maps, uv_atlas
     from core.maps.make import make_maps
 
     mm = read_micromesh(case["result"]).micromesh()
@@ -68,6 +74,12 @@ def child(case: dict) -> dict:
         files, _ = formats.write(formats.FORMATS[key], product, out.name)
         for suffix, data in files.items():
             (out.parent / f"{out.name}{suffix}").write_bytes(data)
+    charts = Maps(uv_atlas(mm.base, case["res"]), np.zeros_like(maps.height),
+                  maps.normal, maps.filled)            # the base on xatlas' charts, for the bake
+    files, _ = formats.write(formats.FORMATS["base-gltf"],
+                             formats.Product(mm, maps=charts), f"{out.name}_charts")
+    for suffix, data in files.items():
+        (out.parent / f"{out.name}_charts{suffix}").write_bytes(data)
     return {"maps_s": round(secs, 1), "maps_mb": round(peak), "notes": maps.notes}
 
 
@@ -147,9 +159,16 @@ def one_mesh(mesh: Path, python: str, out: Path, resolutions: list[int]) -> list
         _, bake_s = heightmap(python, "bake", "--gltf", gltf, "--ref", mesh, "--res", res,
                               "--out", baked)
         theirs = drawn(python, baked, mesh)
+        on_charts = out / str(res) / f"{name}_charts_bake.gltf"
+        heightmap(python, "bake", "--gltf", out / str(res) / f"{name}_charts_base.gltf",
+                  "--ref", mesh, "--res", res, "--out", on_charts)
+        charts = drawn(python, on_charts, mesh)
         row = {"mesh": name, "form": "height map", "res": res, "bytes": png.stat().st_size,
                "psnr": round(ours["psnr"], 2), "psnr_bake": round(theirs["psnr"], 2),
-               "dpsnr": round(ours["psnr"] - theirs["psnr"], 2), "gap4": ours["gap"],
+               "dpsnr": round(ours["psnr"] - theirs["psnr"], 2),
+               "psnr_bake_charts": round(charts["psnr"], 2),
+               "dpsnr_best": round(ours["psnr"] - max(theirs["psnr"], charts["psnr"]), 2),
+               "gap4": ours["gap"],
                "gap4_bake": theirs["gap"], "maps_s": stage["maps_s"],
                "maps_mb": stage["maps_mb"], "bake_s": round(bake_s, 1),
                "construct_s": round(m["time_s"], 1)}
@@ -193,16 +212,17 @@ def main() -> None:
             rows.append(row)
             print(row, flush=True)
             write_json(args.json, rows)
-    print_table(rows, ["mesh", "form", "res", "bytes", "psnr", "psnr_bake", "dpsnr", "gap3",
+    print_table(rows, ["mesh", "form", "res", "bytes", "psnr", "psnr_bake", "dpsnr",
+                       "psnr_bake_charts", "dpsnr_best", "gap3",
                        "gap4", "gap5", "gap4_bake", "construct_s", "product_maps_s", "maps_s",
                        "maps_mb", "bake_s"],
                 title="height maps (ours, fitted) vs the conventional bake vs the micro-mesh; "
                       "PSNR by the judge at tessellation level 4, gaps over the diagonal")
     maps = [r for r in rows if r["form"] == "height map" and r["res"] == PRODUCT_RES]
     if maps:
-        worst = min(maps, key=lambda r: r["dpsnr"])
-        print(f"at {PRODUCT_RES}²: ours - bake {min(r['dpsnr'] for r in maps):+.2f} dB at worst "
-              f"({worst['mesh']}), mean {sum(r['dpsnr'] for r in maps) / len(maps):+.2f} dB; "
+        worst = min(maps, key=lambda r: r["dpsnr_best"])
+        print(f"at {PRODUCT_RES}²: ours - the better bake {worst['dpsnr_best']:+.2f} dB at worst "
+              f"({worst['mesh']}), mean {sum(r['dpsnr_best'] for r in maps) / len(maps):+.2f} dB; "
               f"largest seam gap {max(max(r['gap3'], r['gap4'], r['gap5']) for r in maps):.1e}")
 
 
