@@ -52,6 +52,8 @@ HEIGHT_TOL = 1e-8
 # its samples (the diagonal of the fit's system).
 MEMBRANE = 1e-3
 SEAM = 1.0
+# The start's rays leave from this far towards the face's centre (``_bake``).
+INSET = 1e-3
 # Texels rasterised, baked and sampled at a time: each takes some hundred bytes of
 # temporaries (a whole 2048² map at once added 1.2 GB to the stage's peak).
 CHUNK = 1 << 18
@@ -221,14 +223,17 @@ def _bake(base: TriMesh, U: np.ndarray, ref: TriMesh, face: np.ndarray, bary: np
           filled: np.ndarray) -> np.ndarray:
     """(H, W) the conventional bake in the unit frame: from each filled texel's base point a
     ray both ways along the interpolated unit normal, the nearer hit (the nearest point of
-    the reference where none is within reach); every other texel the nearest filled one's."""
+    the reference where none is within reach); every other texel the nearest filled one's.
+    The rays start :data:`INSET` of the way to the face's centre: a texel on a base edge
+    (every edge of ``blocks``' atlas has texels on it) that lies on a crease of the source
+    sent its rays past both faces of the crease, into the far side of a CAD plate."""
     ys, xs = np.nonzero(filled)
     reach = 0.05 * ref.bbox_diagonal
     ref = TriMesh(ref.vertices, ref.faces)  # its ray scene and tree (cached on it) freed after
     h = np.zeros(filled.shape)
     for s in range(0, len(ys), CHUNK):
         y, x = ys[s:s + CHUNK], xs[s:s + CHUNK]
-        P, n = base_point(base, U, face[y, x], bary[y, x])
+        P, n = base_point(base, U, face[y, x], bary[y, x] * (1.0 - INSET) + INSET / 3.0)
         h[y, x] = bake_displacements(P, n, ref, max_distance=reach).displacement
     return _nearest_fill(h, filled)
 

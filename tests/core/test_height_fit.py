@@ -191,3 +191,22 @@ def test_a_map_with_few_texels_for_its_lattice_takes_half_the_samples(case, monk
     assert starved.notes["texels_per_face"] < 256 / 4      # level 4: 256
     assert asked == [hf.DENSITY, hf.DENSITY / 2]
     assert starved.notes["samples"] < rich.notes["samples"] * 4 / 2
+
+
+def test_a_base_on_the_creases_of_its_source_gets_a_flat_map():
+    """A box drawn exactly by its base, whose directions at two corners lie nearly in the top
+    face (94° from its normal, as the construction's can on a CAD plate's rims): a flat map,
+    the blocks' texels on the base's edges, on the source's creases, included. (The rays of
+    the start from such texels of gen_genus11_27k's base, 1e-9 off its source, went on to the
+    far side of the plate: ``height_fit.INSET``; the box's do not.)"""
+    v = np.array([[x, y, z] for x in (0.0, 2) for y in (0.0, 1) for z in (0.0, 0.5)])
+    f = np.array([[0, 2, 3], [0, 3, 1], [4, 5, 7], [4, 7, 6], [0, 1, 5], [0, 5, 4],
+                  [2, 6, 7], [2, 7, 3], [0, 4, 6], [0, 6, 2], [1, 3, 7], [1, 7, 5]])
+    box = TriMesh(v, f)
+    d = box.vertex_normals.copy()
+    d[[1, 5]] = [0.0, 1.0, -0.07]                  # the top front edge: y = 0, z = 0.5
+    mm = MicroMesh.flat(box, np.zeros(len(f), int), directions=d)
+    atlas = block_atlas(box, 128)
+    hm = fit_height_map(mm, box, atlas, 128, level=3)
+    face, _ = texel_faces(atlas, 128, 128)
+    assert np.abs(hm.height[face >= 0]).max() < 1e-5 * box.bbox_diagonal
