@@ -24,7 +24,11 @@ the product's are). Bytes: the height PNG at each resolution beside the micro-me
 ``.bin`` + ``.bary``: the rate-distortion table.
 
     python bench/heightmap_bench.py [--meshes NAME ...] [--generated [NAME ...]]
-        [--res 512 1024 2048] [--judge-python PATH] [--out DIR] [--json FILE]
+        [--res 512 1024 2048] [--reuse DIR] [--judge-python PATH] [--out DIR] [--json FILE]
+
+``--reuse DIR`` takes each mesh's micro-mesh from an earlier ``batch.py`` run's output
+folder (``DIR/NAME.gltf``, ``.bin``, ``.bary``, ``.metrics.json``) instead of constructing
+it: the maps stage then runs in the child only, at every resolution (no ``product_maps_s``).
 
 The judge needs its own environment (``--judge-python`` or ``$MICROMESH_JUDGE_PYTHON``,
 as ``construct_bench.py``).
@@ -34,6 +38,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 import time
@@ -140,8 +145,13 @@ def run_batch(mesh: Path, out: Path) -> dict:
     return json.loads(metrics.read_text())["metrics"]
 
 
-def one_mesh(mesh: Path, python: str, out: Path, resolutions: list[int]) -> list[dict]:
+def one_mesh(mesh: Path, python: str, out: Path, resolutions: list[int],
+             reuse: Path | None = None) -> list[dict]:
     name = mesh.stem
+    if reuse is not None:
+        for suffix in (".gltf", ".bin", ".bary", ".metrics.json"):
+            if not (out / f"{name}{suffix}").exists():
+                shutil.copyfile(reuse / f"{name}{suffix}", out / f"{name}{suffix}")
     m = run_batch(mesh, out)
     mm_judged = judge(python, mesh, out / f"{name}.gltf", out / f"judge_{name}.json")
     disk = mm_judged["storage"]["disk_bytes_bin_bary"]
@@ -151,8 +161,9 @@ def one_mesh(mesh: Path, python: str, out: Path, resolutions: list[int]) -> list
     for res in resolutions:
         stage = run_child({"result": str(out / f"{name}.gltf"), "source": str(mesh),
                            "res": res, "out": str(out / str(res) / name)})
-        gltf = out / f"{name}_base.gltf" if res == PRODUCT_RES else out / str(res) / \
-            f"{name}_base.gltf"
+        gltf = out / f"{name}_base.gltf"           # the product's, where batch.py made it
+        if res != PRODUCT_RES or not gltf.exists():
+            gltf = out / str(res) / f"{name}_base.gltf"
         png = gltf.with_name(f"{name}_height.png")
         ours = drawn(python, gltf, mesh)
         baked = gltf.with_name(f"{name}_bake.gltf")
@@ -173,7 +184,8 @@ def one_mesh(mesh: Path, python: str, out: Path, resolutions: list[int]) -> list
                "maps_mb": stage["maps_mb"], "bake_s": round(bake_s, 1),
                "construct_s": round(m["time_s"], 1)}
         if res == PRODUCT_RES:
-            row["product_maps_s"] = round(m["maps"]["time_s"], 1)
+            if "maps" in m:
+                row["product_maps_s"] = round(m["maps"]["time_s"], 1)
             row["gap3"] = drawn(python, gltf, mesh, 3, score=False)["gap"]
             row["gap5"] = drawn(python, gltf, mesh, 5, score=False)["gap"]
         rows.append(row)
@@ -187,6 +199,8 @@ def main() -> None:
     p.add_argument("--generated", nargs="*", default=None, metavar="NAME",
                    help="the meshes of bench/generated_meshes.py (all, or those named)")
     p.add_argument("--res", type=int, nargs="+", default=[512, 1024, 2048])
+    p.add_argument("--reuse", type=Path, default=None, metavar="DIR",
+                   help="micro-meshes from an earlier batch.py output folder (no construction)")
     p.add_argument("--judge-python", default=os.environ.get(
         "MICROMESH_JUDGE_PYTHON", str(SHARED / "judge" / "venv" / "bin" / "python")))
     p.add_argument("--out", default="/tmp/micromesh_heightmap_bench")
@@ -208,7 +222,7 @@ def main() -> None:
     for mesh in meshes:
         out = Path(args.out) / mesh.stem
         out.mkdir(parents=True, exist_ok=True)
-        for row in one_mesh(mesh, args.judge_python, out, args.res):
+        for row in one_mesh(mesh, args.judge_python, out, args.res, args.reuse):
             rows.append(row)
             print(row, flush=True)
             write_json(args.json, rows)

@@ -93,10 +93,15 @@ def _diagonal_rows(pts: np.ndarray, cover: np.ndarray, width: int
     a row or column, or a diagonal with one texel of each cell off its face's cover)."""
     d = pts[:, 1:] - pts[:, :-1]
     diagonal = (d[..., 0] != 0).all(1) & (d[..., 1] != 0).all(1)
-    f1 = _flat(np.stack([pts[:, :-1, 0] + d[..., 0], pts[:, :-1, 1]], -1), width)
-    f2 = _flat(np.stack([pts[:, :-1, 0], pts[:, :-1, 1] + d[..., 1]], -1), width)
+    height = len(cover) // width
+    q1 = np.stack([pts[:, :-1, 0] + d[..., 0], pts[:, :-1, 1]], -1)
+    q2 = np.stack([pts[:, :-1, 0], pts[:, :-1, 1] + d[..., 1]], -1)
+    inside = ((q1 >= 0) & (q1 < [width, height])).all(-1) & \
+        ((q2 >= 0) & (q2 < [width, height])).all(-1)         # (a cell past the map's edge)
+    f1 = _flat(np.where(inside[..., None], q1, 0), width)
+    f2 = _flat(np.where(inside[..., None], q2, 0), width)
     out1, out2 = ~cover[f1] & cover[f2], cover[f1] & ~cover[f2]
-    fits = ~diagonal | (out1 | out2).all(1)
+    fits = ~diagonal | ((out1 | out2) & inside).all(1)
     rows = np.stack([np.where(out1, f1, f2), _flat(pts[:, :-1], width),
                      _flat(pts[:, 1:], width), np.where(out1, f2, f1)], -1)
     rows[~diagonal] = -1
