@@ -172,7 +172,6 @@ class _Texels:
     @classmethod
     def set_up(cls, lattice: Lattice, uv: np.ndarray, base: TriMesh, U: np.ndarray,
                ref: TriMesh, atlas: Atlas, res: int, seam_level: int) -> "_Texels":
-        lt, lw = bilinear_taps(uv, res, res)
         face, bary = texel_faces(atlas, res, res, chunk=CHUNK)
         filled = face >= 0
         ties = texel_ties(base, atlas, res, res, filled)
@@ -180,12 +179,17 @@ class _Texels:
         apart = np.any(seams.uv_a != seams.uv_b, axis=1)
         at, aw = bilinear_taps(seams.uv_a[apart], res, res)
         bt, bw = bilinear_taps(seams.uv_b[apart], res, res)
-        grid = TexelGrid.covering(res, res, ndimage.binary_dilation(filled, iterations=2),
-                                  lt, at, bt, ties=ties)
+        read = ndimage.binary_dilation(filled, iterations=2).reshape(-1)
+        for s in range(0, len(uv), 4 * CHUNK):     # (the lattice's taps: 16 bytes a point)
+            read[bilinear_taps(uv[s:s + 4 * CHUNK], res, res)[0].reshape(-1)] = True
+        grid = TexelGrid.covering(res, res, read.reshape(res, res), at, bt, ties=ties)
+        del read
         start = _bake(base, U, ref, face, bary, filled)
         del face, bary
         length = np.linalg.norm(lattice.D, axis=1)
-        SB = (sp.diags(1.0 / length) @ grid.sampling(lt, lw)).tocsr()
+        SB = sp.vstack([grid.sampling(*_scaled(uv[s:s + 4 * CHUNK], length[s:s + 4 * CHUNK],
+                                               res)) for s in range(0, len(uv), 4 * CHUNK)],
+                       format="csr")                # S B: the lookups over |lerp(N)|
         C = (grid.sampling(at, aw) - grid.sampling(bt, bw)).tocsr()
         C.data[np.abs(C.data) < 1e-12] = 0.0        # both sides on tied texels
         C.eliminate_zeros()
@@ -217,6 +221,12 @@ class _Texels:
         self.x, steps = pcg(lambda v: SB.T @ (M @ (SB @ v)) + tied * (membrane @ v)
                              + seam * (CtC @ v), SB.T @ b, self.x, diag, should_stop, floor)
         return steps, dist, tri
+
+
+def _scaled(uv: np.ndarray, length: np.ndarray, res: int) -> tuple[np.ndarray, np.ndarray]:
+    """The bilinear taps of ``uv`` with their weights over ``length``."""
+    taps, w = bilinear_taps(uv, res, res)
+    return taps, w / length[:, None]
 
 
 def _bake(base: TriMesh, U: np.ndarray, ref: TriMesh, face: np.ndarray, bary: np.ndarray,

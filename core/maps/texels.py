@@ -85,26 +85,31 @@ class TexelGrid:
 
     def sampling(self, texels: np.ndarray, weights: np.ndarray) -> sp.csr_matrix:
         """(q, n) the lookups of :func:`bilinear_taps` as rows over the unknowns (every tap
-        must be an unknown or a follower: :meth:`covering` made with those taps)."""
+        must be an unknown or a follower: :meth:`covering` made with those taps). A follower
+        t = a + b − c read with weight w reads a, b and c with w, w and −w."""
         q, k = texels.shape
-        rows = np.repeat(np.arange(q), k)
-        flat, w = texels.reshape(-1), weights.reshape(-1)
-        cols = self.number[flat]
-        parts = [(rows, cols, w)]
+        kind = np.int32 if self.n < 2 ** 31 else np.int64
+        cols = self.number[texels].astype(kind)
+        extra = None
         if len(self.follow):
+            hit = np.flatnonzero(cols.reshape(-1) < 0)
             order = np.argsort(self.follow[:, 0])
-            at = np.clip(np.searchsorted(self.follow[order, 0], flat), 0, len(order) - 1)
-            hit = (cols < 0) & (self.follow[order[at], 0] == flat)
-            f = self.follow[order[at[hit]]]
-            r, wh = rows[hit], w[hit]
-            parts += [(r, self.number[f[:, 1]], wh), (r, self.number[f[:, 2]], wh),
-                      (r, self.number[f[:, 3]], -wh)]
-            keep = ~hit
-            parts[0] = (rows[keep], cols[keep], w[keep])
-        rows, cols, w = (np.concatenate(x) for x in zip(*parts))
+            at = np.clip(np.searchsorted(self.follow[order, 0], texels.reshape(-1)[hit]), 0,
+                         len(order) - 1)
+            found = self.follow[order[at], 0] == texels.reshape(-1)[hit]
+            hit, f = hit[found], self.follow[order[at[found]]]
+            cols.reshape(-1)[hit] = self.number[f[:, 1]]          # a in the tap's place
+            w = weights.reshape(-1)[hit]
+            rows = np.repeat(hit // k, 2)
+            extra = sp.csr_matrix((np.stack([w, -w], 1).reshape(-1),
+                                   (rows, np.stack([self.number[f[:, 2]], self.number[f[:, 3]]],
+                                                   1).reshape(-1))), shape=(q, self.n))
         if (cols < 0).any():
             raise ValueError("a lookup reads a texel that is not an unknown")
-        m = sp.csr_matrix((w, (rows, cols)), shape=(q, self.n))
+        m = sp.csr_matrix((weights.reshape(-1), cols.reshape(-1),
+                           np.arange(0, q * k + 1, k, dtype=kind)), shape=(q, self.n))
+        if extra is not None and extra.nnz:
+            m = m + extra
         m.sum_duplicates()
         return m
 
